@@ -1,0 +1,171 @@
+//! Outcomes of one scene (SPEC §4–§5): per-ball final velocities, `ejected`,
+//! diagnostics and a status that is never `ok` for garbage.
+
+use std::fmt;
+
+use serde::Serialize;
+
+use super::integrate::{End, Run};
+use super::Chain;
+
+/// Energy error above which a scene is not `ok`.
+pub const ENERGY_BOUND: f64 = 1e-3;
+/// Overlap / radius above which Hertz theory is not trusted.
+pub const MAX_OVERLAP_RATIO: f64 = 0.1;
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Status {
+    Ok,
+    /// The step cap was reached before the chain settled.
+    StepCap,
+    /// The time cap (`[stop] duration`) was reached before the chain settled.
+    TimeCap,
+    /// NaN or infinity appeared.
+    NonFinite,
+    /// The relative energy error exceeded [`ENERGY_BOUND`] (step too large?).
+    EnergyError,
+    /// Overlap beyond the validity of Hertz theory ([`MAX_OVERLAP_RATIO`]).
+    OverlapInvalid,
+    /// The scene failed validation (in a sweep: this combination of values).
+    Invalid,
+}
+
+impl Status {
+    pub fn name(self) -> &'static str {
+        match self {
+            Status::Ok => "ok",
+            Status::StepCap => "step_cap",
+            Status::TimeCap => "time_cap",
+            Status::NonFinite => "non_finite",
+            Status::EnergyError => "energy_error",
+            Status::OverlapInvalid => "overlap_invalid",
+            Status::Invalid => "invalid",
+        }
+    }
+}
+
+impl fmt::Display for Status {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct Outcome {
+    pub status: Status,
+    /// Final velocity of each ball (m/s); glued balls repeat their body's.
+    pub v: Vec<f64>,
+    /// Balls leaving at the far end (SPEC §5).
+    pub ejected: usize,
+    pub energy_error: f64,
+    pub momentum_error: f64,
+    pub max_overlap_m: f64,
+    pub steps: u64,
+    /// Simulated time at the end (s).
+    pub t_end: f64,
+    /// First contact onset and last release (s); NaN when there was no contact.
+    pub t_contact: f64,
+    pub t_release: f64,
+    /// Step used (s); NaN when nothing could collide.
+    pub dt: f64,
+}
+
+impl Outcome {
+    pub fn from_run(chain: &Chain, run: &Run, dt: f64) -> Outcome {
+        let v: Vec<f64> = chain.body_of_ball.iter().map(|&b| run.v[b]).collect();
+        let e0 = chain.energy(&chain.v0, &vec![0.0; chain.k.len()]);
+        let e1 = chain.energy(&run.v, &run.overlap);
+        let p0 = chain.momentum(&chain.v0);
+        let p1 = chain.momentum(&run.v);
+        let p_scale: f64 = chain
+            .mass
+            .iter()
+            .zip(&chain.v0)
+            .map(|(m, v)| m * v.abs())
+            .sum();
+        let energy_error = if e0 > 0.0 {
+            (e1 - e0).abs() / e0
+        } else {
+            e1.abs()
+        };
+        let momentum_error = if p_scale > 0.0 {
+            (p1 - p0).abs() / p_scale
+        } else {
+            p1.abs()
+        };
+        let status = match run.end {
+            End::NonFinite => Status::NonFinite,
+            End::StepCap => Status::StepCap,
+            End::TimeCap => Status::TimeCap,
+            End::Settled if !(energy_error <= ENERGY_BOUND) => Status::EnergyError,
+            End::Settled if run.max_overlap_ratio > MAX_OVERLAP_RATIO => Status::OverlapInvalid,
+            End::Settled => Status::Ok,
+        };
+        Outcome {
+            status,
+            ejected: ejected(&v),
+            v,
+            energy_error,
+            momentum_error,
+            max_overlap_m: run.max_overlap,
+            steps: run.steps,
+            t_end: run.t,
+            t_contact: run.t_first_contact.unwrap_or(f64::NAN),
+            t_release: run.t_last_release.unwrap_or(f64::NAN),
+            dt,
+        }
+    }
+
+    /// An outcome for a scene that could not be built (a sweep keeps going).
+    pub fn invalid(n_balls: usize) -> Outcome {
+        Outcome {
+            status: Status::Invalid,
+            v: vec![f64::NAN; n_balls],
+            ejected: 0,
+            energy_error: f64::NAN,
+            momentum_error: f64::NAN,
+            max_overlap_m: f64::NAN,
+            steps: 0,
+            t_end: f64::NAN,
+            t_contact: f64::NAN,
+            t_release: f64::NAN,
+            dt: f64::NAN,
+        }
+    }
+}
+
+/// SPEC §5: the number of balls at the right end that leave faster than half
+/// the largest final velocity, with velocities non-decreasing toward the end.
+pub fn ejected(v: &[f64]) -> usize {
+    let vmax = v.iter().copied().fold(f64::MIN, f64::max);
+    if !(vmax > 0.0) {
+        return 0;
+    }
+    let mut count = 0;
+    for i in (0..v.len()).rev() {
+        let fast = v[i] > 0.5 * vmax;
+        let ordered = i + 1 == v.len() || v[i] <= v[i + 1];
+        if !(fast && ordered) {
+            break;
+        }
+        count += 1;
+    }
+    count
+}
+
+#[cfg(test)]
+mod tests {
+    use super::ejected;
+
+    #[test]
+    fn ejected_counts_the_fast_tail() {
+        assert_eq!(ejected(&[0.0, 0.0, 0.0, 0.0, 1.0]), 1);
+        assert_eq!(ejected(&[0.0, 0.0, 0.0, 1.0, 1.0]), 2);
+        assert_eq!(ejected(&[-0.07, -0.03, -0.01, 0.127, 0.989]), 1);
+        // a fast ball that is followed by a slower one does not count
+        assert_eq!(ejected(&[0.0, 0.0, 0.9, 0.6, 1.0]), 2);
+        assert_eq!(ejected(&[0.0, 0.0, 1.0, 0.1, 0.2]), 0);
+        assert_eq!(ejected(&[-1.0, 0.0]), 0);
+    }
+}

@@ -1,0 +1,36 @@
+//! The floating-point type an integration runs in: `f32` or `f64`.
+
+use num_traits::Float;
+
+/// A float the integrator is generic over. Conversions go through `f64`,
+/// the precision every scene is specified and reported in.
+pub trait Real: Float + Send + Sync + std::fmt::Debug + 'static {
+    /// Name as written in `--precision` and the CSV sidecar.
+    const NAME: &'static str;
+    fn of(x: f64) -> Self;
+    fn to64(self) -> f64;
+}
+
+impl Real for f64 {
+    const NAME: &'static str = "f64";
+    #[inline(always)]
+    fn of(x: f64) -> Self {
+        x
+    }
+    #[inline(always)]
+    fn to64(self) -> f64 {
+        self
+    }
+}
+
+impl Real for f32 {
+    const NAME: &'static str = "f32";
+    #[inline(always)]
+    fn of(x: f64) -> Self {
+        x as f32
+    }
+    #[inline(always)]
+    fn to64(self) -> f64 {
+        self as f64
+    }
+}

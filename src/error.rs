@@ -1,0 +1,181 @@
+//! Typed errors for everything a person types: scene and sweep files, flags.
+//! Every message names the file (and line where TOML gives one), the key, the
+//! value and the allowed range. The CLI maps these to exit code 2.
+
+use std::path::PathBuf;
+
+/// An error in user input. Runtime failures (a GPU lost, a disk full) are not
+/// `InputError`s; they travel as `anyhow` errors and exit with code 1.
+#[derive(Debug, thiserror::Error)]
+pub enum InputError {
+    #[error("cannot read {}: {source}", path.display())]
+    Read {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("{origin}:{line}:{col}: {message}")]
+    Syntax {
+        origin: String,
+        line: usize,
+        col: usize,
+        message: String,
+    },
+    #[error(
+        "{}: unknown key `{key}`{} (allowed: {allowed})",
+        loc(origin, line),
+        suggest(suggestion)
+    )]
+    UnknownKey {
+        origin: String,
+        line: Option<usize>,
+        key: String,
+        suggestion: Option<String>,
+        allowed: String,
+    },
+    #[error("{}: `{key}` = {value}: {allowed}", loc(origin, line))]
+    Invalid {
+        origin: String,
+        line: Option<usize>,
+        key: String,
+        value: String,
+        allowed: String,
+    },
+    #[error("{}: missing key `{key}`: {help}", loc(origin, line))]
+    Missing {
+        origin: String,
+        line: Option<usize>,
+        key: String,
+        help: String,
+    },
+    #[error("{}: `{key}`: {what}", loc(origin, line))]
+    Unsupported {
+        origin: String,
+        line: Option<usize>,
+        key: String,
+        what: String,
+    },
+    #[error("{flag} {value}: {allowed}")]
+    Flag {
+        flag: String,
+        value: String,
+        allowed: String,
+    },
+}
+
+fn loc(origin: &str, line: &Option<usize>) -> String {
+    match line {
+        Some(l) => format!("{origin}:{l}"),
+        None => origin.to_string(),
+    }
+}
+
+fn suggest(s: &Option<String>) -> String {
+    match s {
+        Some(s) => format!(" — did you mean `{s}`?"),
+        None => String::new(),
+    }
+}
+
+/// The closest of `allowed` to `key`, if it is close enough to be a typo.
+pub fn closest<'a>(key: &str, allowed: impl IntoIterator<Item = &'a str>) -> Option<String> {
+    allowed
+        .into_iter()
+        .map(|a| (strsim::normalized_damerau_levenshtein(key, a), a))
+        .filter(|(score, _)| *score >= 0.5)
+        .max_by(|a, b| a.0.total_cmp(&b.0))
+        .map(|(_, a)| a.to_string())
+}
+
+/// Text of a TOML document and the name to report it by (a path, or
+/// `built-in scene NAME`). Turns byte offsets into line numbers.
+#[derive(Clone, Debug)]
+pub struct Source {
+    pub name: String,
+    pub text: String,
+}
+
+impl Source {
+    pub fn new(name: impl Into<String>, text: impl Into<String>) -> Self {
+        Source {
+            name: name.into(),
+            text: text.into(),
+        }
+    }
+
+    pub fn read(path: &std::path::Path) -> Result<Self, InputError> {
+        let text = std::fs::read_to_string(path).map_err(|source| InputError::Read {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        Ok(Source::new(path.display().to_string(), text))
+    }
+
+    /// 1-based (line, column) of a byte offset.
+    pub fn line_col(&self, offset: usize) -> (usize, usize) {
+        let offset = offset.min(self.text.len());
+        let before = &self.text.as_bytes()[..offset];
+        let line = before.iter().filter(|&&b| b == b'\n').count() + 1;
+        let col = offset
+            - before
+                .iter()
+                .rposition(|&b| b == b'\n')
+                .map_or(0, |p| p + 1)
+            + 1;
+        (line, col)
+    }
+
+    pub fn line(&self, offset: usize) -> usize {
+        self.line_col(offset).0
+    }
+
+    /// Parse `self.text` into `T`, turning serde's "unknown field" into an
+    /// [`InputError::UnknownKey`] with a suggestion, and other failures into
+    /// [`InputError::Syntax`] with line and column.
+    pub fn parse_toml<T: serde::de::DeserializeOwned>(&self) -> Result<T, InputError> {
+        toml::from_str(&self.text).map_err(|e| self.toml_error(&e))
+    }
+
+    fn toml_error(&self, e: &toml::de::Error) -> InputError {
+        let (line, col) = e.span().map_or((1, 1), |s| self.line_col(s.start));
+        let msg = e.message();
+        if let Some(rest) = msg.strip_prefix("unknown field ") {
+            // serde: "unknown field `x`, expected one of `a`, `b`" / "expected `a` or `b`"
+            let names: Vec<&str> = rest.split('`').skip(1).step_by(2).collect();
+            if let Some((key, allowed)) = names.split_first() {
+                return InputError::UnknownKey {
+                    origin: self.name.clone(),
+                    line: Some(line),
+                    key: key.to_string(),
+                    suggestion: closest(key, allowed.iter().copied()),
+                    allowed: allowed.join(", "),
+                };
+            }
+        }
+        InputError::Syntax {
+            origin: self.name.clone(),
+            line,
+            col,
+            message: msg.trim().to_string(),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn line_col_counts_from_one() {
+        let s = Source::new("f", "a = 1\nbb = 2\n");
+        assert_eq!(s.line_col(0), (1, 1));
+        assert_eq!(s.line_col(6), (2, 1));
+        assert_eq!(s.line_col(8), (2, 3));
+    }
+
+    #[test]
+    fn closest_finds_typos_only() {
+        let keys = ["radius", "density", "mass"];
+        assert_eq!(closest("radus", keys).as_deref(), Some("radius"));
+        assert_eq!(closest("zzzzzzzz", keys), None);
+    }
+}

@@ -1,0 +1,98 @@
+//! `cradle`: the command-line front end. `run()` does the work; `main` prints
+//! the whole error chain and exits 2 for bad input, 1 for anything else.
+
+use std::fs::File;
+use std::io::{BufWriter, Write};
+use std::process::ExitCode;
+
+use anyhow::Context;
+use clap::Parser;
+
+use hertz_cradle::cli::{flag, Cli, Command, Format};
+use hertz_cradle::engine::{simulate_chain, Chain, Silent, Solver};
+use hertz_cradle::output::{row, trace::TraceWriter};
+use hertz_cradle::scene::{builtin, Scene};
+use hertz_cradle::InputError;
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    match run(cli) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            if is_broken_pipe(&e) {
+                return ExitCode::SUCCESS;
+            }
+            eprintln!("error: {e:#}");
+            if e.chain().any(|c| c.downcast_ref::<InputError>().is_some()) {
+                ExitCode::from(2)
+            } else {
+                ExitCode::from(1)
+            }
+        }
+    }
+}
+
+fn is_broken_pipe(e: &anyhow::Error) -> bool {
+    e.chain().any(|c| {
+        c.downcast_ref::<std::io::Error>()
+            .is_some_and(|io| io.kind() == std::io::ErrorKind::BrokenPipe)
+    })
+}
+
+fn run(cli: Cli) -> anyhow::Result<()> {
+    match cli.command {
+        Command::Scenes => {
+            let mut out = std::io::stdout().lock();
+            for b in builtin::BUILTINS {
+                writeln!(out, "{:<28} {}", b.name, b.summary)?;
+            }
+            Ok(())
+        }
+        Command::Run {
+            scene,
+            format,
+            trace,
+            trace_dt,
+            solver,
+        } => {
+            let sc = Scene::load(&scene)?;
+            let solver = Solver::resolve(&sc, &solver.overrides()?)?;
+            let chain = Chain::from_scene(&sc)
+                .map_err(|e| anyhow::Error::new(e).context(format!("scene {scene}")))?;
+            let outcome = match trace {
+                None => simulate_chain(&chain, &solver, &mut Silent),
+                Some(path) => {
+                    let every = match trace_dt {
+                        Some(d) if d.is_finite() && d > 0.0 => d,
+                        Some(d) => {
+                            return Err(flag("--trace-dt", &d.to_string(), "a time > 0 (s)").into())
+                        }
+                        None => chain.time_scale().map_or(1e-6, |tc| tc / 20.0),
+                    };
+                    let file = File::create(&path)
+                        .with_context(|| format!("cannot create trace file {}", path.display()))?;
+                    let mut tw = TraceWriter::new(BufWriter::new(file), &chain, every)?;
+                    let o = simulate_chain(&chain, &solver, &mut tw);
+                    tw.finish()
+                        .with_context(|| format!("writing {}", path.display()))?;
+                    o
+                }
+            };
+            let mut out = std::io::stdout().lock();
+            match format {
+                Format::Table => write!(
+                    out,
+                    "{}",
+                    row::table(&scene, sc.v_in(), &sc.velocity, &outcome)
+                )?,
+                Format::Csv => {
+                    let mut w = csv::Writer::from_writer(&mut out);
+                    w.write_record(row::header(&[], sc.n))?;
+                    w.write_record(row::fields(0, &[], &outcome, sc.n))?;
+                    w.flush()?;
+                }
+            }
+            Ok(())
+        }
+    }
+}

@@ -1,0 +1,104 @@
+//! One outcome row, the same for `cradle run --format csv` and every sweep row
+//! (SPEC §4): `id`, one column per axis, `status`, `v_0`..`v_{N−1}`,
+//! `ejected`, `energy_error`, `momentum_error`, `max_overlap_m`, `steps`,
+//! then `t_contact`, `t_release`, `dt` (s).
+
+use crate::engine::Outcome;
+
+/// Column names for `axes` and a chain of at most `width` balls.
+pub fn header(axes: &[String], width: usize) -> Vec<String> {
+    let mut h = vec!["id".to_string()];
+    h.extend(axes.iter().cloned());
+    h.push("status".into());
+    h.extend((0..width).map(|i| format!("v_{i}")));
+    for c in [
+        "ejected",
+        "energy_error",
+        "momentum_error",
+        "max_overlap_m",
+        "steps",
+        "t_contact",
+        "t_release",
+        "dt",
+    ] {
+        h.push(c.into());
+    }
+    h
+}
+
+/// A float as the CSV writes it: shortest round-trip text; NaN → empty.
+pub fn num(x: f64) -> String {
+    if x.is_nan() {
+        String::new()
+    } else if x == 0.0 || (1e-3..1e7).contains(&x.abs()) {
+        format!("{x}")
+    } else {
+        format!("{x:e}")
+    }
+}
+
+/// The fields of one row; missing balls (N below `width`) are empty.
+pub fn fields(id: u64, axis_values: &[String], o: &Outcome, width: usize) -> Vec<String> {
+    let mut r = Vec::with_capacity(12 + axis_values.len() + width);
+    r.push(id.to_string());
+    r.extend(axis_values.iter().cloned());
+    r.push(o.status.name().to_string());
+    r.extend((0..width).map(|i| o.v.get(i).map_or(String::new(), |&v| num(v))));
+    r.push(o.ejected.to_string());
+    for x in [o.energy_error, o.momentum_error, o.max_overlap_m] {
+        r.push(num(x));
+    }
+    r.push(o.steps.to_string());
+    for x in [o.t_contact, o.t_release, o.dt] {
+        r.push(num(x));
+    }
+    r
+}
+
+/// A human-readable table of one outcome (`cradle run`).
+pub fn table(name: &str, v_in: f64, v0: &[f64], o: &Outcome) -> String {
+    use std::fmt::Write;
+    let mut s = String::new();
+    let _ = writeln!(s, "scene   {name}");
+    let _ = writeln!(s, "status  {}", o.status);
+    let _ = writeln!(
+        s,
+        "\n ball   v_initial (m/s)   v_final (m/s)   v_final / v_in"
+    );
+    for (i, (a, b)) in v0.iter().zip(&o.v).enumerate() {
+        let _ = writeln!(s, " {i:>4}   {a:>15.6}   {b:>13.8}   {:>14.8}", b / v_in);
+    }
+    let _ = writeln!(s);
+    let _ = writeln!(s, "ejected          {}", o.ejected);
+    let _ = writeln!(s, "energy_error     {:.3e}  (relative)", o.energy_error);
+    let _ = writeln!(s, "momentum_error   {:.3e}  (relative)", o.momentum_error);
+    let _ = writeln!(s, "max_overlap      {:.6e} m", o.max_overlap_m);
+    let _ = writeln!(
+        s,
+        "contact          {:.6e} s .. {:.6e} s",
+        o.t_contact, o.t_release
+    );
+    let _ = writeln!(s, "steps            {}  (dt = {:.4e} s)", o.steps, o.dt);
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::num;
+
+    #[test]
+    fn numbers_round_trip() {
+        for x in [
+            0.0,
+            1.0,
+            -0.07109,
+            1e-14,
+            2.6055e-5,
+            123456789.0,
+            -1.0 / 3.0,
+        ] {
+            assert_eq!(num(x).parse::<f64>().unwrap(), x);
+        }
+        assert_eq!(num(f64::NAN), "");
+    }
+}
