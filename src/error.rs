@@ -151,11 +151,23 @@ impl Source {
                 };
             }
         }
+        // Name the key of the offending line, when the line is `key = value`.
+        let key = e
+            .span()
+            .and_then(|_| self.text.lines().nth(line - 1))
+            .and_then(|l| {
+                let (k, _) = l.split_once('=')?;
+                let k = k.trim();
+                (!k.is_empty() && !k.starts_with('[') && !k.starts_with('#')).then(|| k.to_string())
+            });
         InputError::Syntax {
             origin: self.name.clone(),
             line,
             col,
-            message: msg.trim().to_string(),
+            message: match key {
+                Some(k) => format!("`{k}`: {}", msg.trim()),
+                None => msg.trim().to_string(),
+            },
         }
     }
 }

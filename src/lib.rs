@@ -4,6 +4,9 @@
 //! [`sweep`] (axes → scenes in id order) → [`backend`] (cpu | gpu) →
 //! [`engine`] (chain, contact law, integrator, outcomes) → [`output`] (CSV, tables, traces).
 
+// Numeric kernels index several parallel arrays by the same body or contact.
+#![allow(clippy::needless_range_loop)]
+
 pub mod cli;
 pub mod engine;
 pub mod error;

@@ -90,7 +90,7 @@ impl Chain {
         let vmax = self.v0.iter().copied().fold(f64::MIN, f64::max);
         let vmin = self.v0.iter().copied().fold(f64::MAX, f64::min);
         let v = vmax - vmin;
-        if !(v > 0.0) || self.k.is_empty() {
+        if v.is_nan() || v <= 0.0 || self.k.is_empty() {
             return None;
         }
         (0..self.k.len())

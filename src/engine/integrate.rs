@@ -15,6 +15,9 @@ use super::real::Real;
 use super::Chain;
 use crate::scene::MAX_BALLS;
 
+/// Closing speeds below this many ulps of v_in count as zero (see `integrate`).
+pub const CLOSING_SPEED_FLOOR: f64 = 256.0;
+
 /// Why a run stopped.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum End {
@@ -131,6 +134,10 @@ pub fn integrate<R: Real, O: Observer>(ch: &Chain, h: f64, lim: &Limits, obs: &m
         inv_r[c] = 1.0 / ch.r_min[c];
     }
     let (hr, hh) = (R::of(h), R::of(0.5 * h));
+    // Closing speeds at round-off level are noise, not an approach: without
+    // this floor two balls left at ±1e-15 m/s would "collide" a billion years
+    // later and hit the time cap.
+    let v_floor = R::of(CLOSING_SPEED_FLOOR) * R::epsilon() * R::of(ch.v_in());
     let mut t = 0.0f64;
     let mut steps = 0u64;
     let mut closed = false;
@@ -155,7 +162,7 @@ pub fn integrate<R: Real, O: Observer>(ch: &Chain, h: f64, lim: &Limits, obs: &m
             let mut next = None;
             for c in 0..nc {
                 let r = s.v[c] - s.v[c + 1];
-                if r > zero {
+                if r > v_floor {
                     let dt = -s.d[c] / r;
                     if dt < tau {
                         tau = dt;

@@ -98,7 +98,9 @@ impl Outcome {
             End::NonFinite => Status::NonFinite,
             End::StepCap => Status::StepCap,
             End::TimeCap => Status::TimeCap,
-            End::Settled if !(energy_error <= ENERGY_BOUND) => Status::EnergyError,
+            End::Settled if energy_error.is_nan() || energy_error > ENERGY_BOUND => {
+                Status::EnergyError
+            }
             End::Settled if run.max_overlap_ratio > MAX_OVERLAP_RATIO => Status::OverlapInvalid,
             End::Settled => Status::Ok,
         };
@@ -139,7 +141,7 @@ impl Outcome {
 /// the largest final velocity, with velocities non-decreasing toward the end.
 pub fn ejected(v: &[f64]) -> usize {
     let vmax = v.iter().copied().fold(f64::MIN, f64::max);
-    if !(vmax > 0.0) {
+    if vmax.is_nan() || vmax <= 0.0 {
         return 0;
     }
     let mut count = 0;

@@ -122,6 +122,11 @@ impl Scene {
         SceneSpec::parse(&Source::read(path)?)?.validate()
     }
 
+    /// Parse and check a scene from TOML text; `name` is used in messages.
+    pub fn from_toml_str(name: &str, text: &str) -> Result<Scene, InputError> {
+        SceneSpec::parse(&Source::new(name, text))?.validate()
+    }
+
     /// A file path, or else the name of a built-in scene.
     pub fn load(name_or_path: &str) -> Result<Scene, InputError> {
         let path = Path::new(name_or_path);
@@ -189,6 +194,7 @@ impl Check<'_> {
     }
 
     /// A per-ball (or per-contact) array of `n` values, each passing `ok`.
+    #[allow(clippy::too_many_arguments)]
     fn per(
         &self,
         key: &str,

@@ -1,0 +1,257 @@
+//! `cradle` end to end (assert_cmd): outputs, files and error messages.
+
+use assert_cmd::Command;
+use std::fs;
+
+fn cradle() -> Command {
+    Command::cargo_bin("cradle").unwrap()
+}
+
+fn write(dir: &tempfile::TempDir, name: &str, text: &str) -> String {
+    let p = dir.path().join(name);
+    fs::write(&p, text).unwrap();
+    p.display().to_string()
+}
+
+/// Run and expect failure with exit code 2; returns stderr.
+fn bad_input(args: &[&str]) -> String {
+    let out = cradle().args(args).output().unwrap();
+    assert_eq!(
+        out.status.code(),
+        Some(2),
+        "stdout {}\nstderr {}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8(out.stderr).unwrap()
+}
+
+#[test]
+fn scenes_lists_the_builtins() {
+    let out = cradle()
+        .arg("scenes")
+        .assert()
+        .success()
+        .get_output()
+        .stdout
+        .clone();
+    let text = String::from_utf8(out).unwrap();
+    for name in [
+        "seed-two-lifted",
+        "seed-glued-pair-into-one",
+        "seed-glued-pair-into-three",
+        "cradle-1",
+        "cradle-2",
+        "cradle-3",
+    ] {
+        assert!(text.contains(name), "{name} missing from\n{text}");
+    }
+}
+
+#[test]
+fn run_prints_a_table_and_csv_row() {
+    let out = cradle()
+        .args(["run", "cradle-1"])
+        .assert()
+        .success()
+        .get_output()
+        .stdout
+        .clone();
+    let text = String::from_utf8(out).unwrap();
+    assert!(
+        text.contains("status  ok") && text.contains("0.98877"),
+        "{text}"
+    );
+
+    let out = cradle()
+        .args(["run", "cradle-2", "--format", "csv"])
+        .assert()
+        .success()
+        .get_output()
+        .stdout
+        .clone();
+    let mut r = csv::Reader::from_reader(out.as_slice());
+    let h: Vec<String> = r.headers().unwrap().iter().map(String::from).collect();
+    assert_eq!(
+        &h[..13],
+        [
+            "id",
+            "status",
+            "v_0",
+            "v_1",
+            "v_2",
+            "v_3",
+            "v_4",
+            "ejected",
+            "energy_error",
+            "momentum_error",
+            "max_overlap_m",
+            "steps",
+            "t_contact"
+        ]
+    );
+    let rows: Vec<csv::StringRecord> = r.records().map(|x| x.unwrap()).collect();
+    assert_eq!(rows.len(), 1);
+    assert_eq!(&rows[0][1], "ok");
+    // Hertz, touching: not the textbook (0,0,0,1,1) but two fast balls out.
+    let v4: f64 = rows[0][6].parse().unwrap();
+    let v3: f64 = rows[0][5].parse().unwrap();
+    assert!(
+        v4 > 1.0 && v3 > 0.5 * v4 && v3 < v4,
+        "two balls out: {:?}",
+        rows[0]
+    );
+    assert_eq!(&rows[0][7], "2");
+}
+
+#[test]
+fn trace_has_every_ball_and_spans_the_run() {
+    let dir = tempfile::tempdir().unwrap();
+    let trace = dir.path().join("t.csv");
+    cradle()
+        .args([
+            "run",
+            "seed-glued-pair-into-one",
+            "--trace",
+            trace.to_str().unwrap(),
+            "--trace-dt",
+            "1e-6",
+        ])
+        .assert()
+        .success();
+    let mut r = csv::Reader::from_path(&trace).unwrap();
+    assert_eq!(
+        r.headers().unwrap().iter().collect::<Vec<_>>(),
+        ["t", "x_0", "x_1", "x_2", "v_0", "v_1", "v_2"]
+    );
+    let rows: Vec<Vec<f64>> = r
+        .records()
+        .map(|x| x.unwrap().iter().map(|f| f.parse().unwrap()).collect())
+        .collect();
+    // contact of ~86 µs sampled every 1 µs, plus the final state
+    assert!(rows.len() > 80 && rows.len() < 100, "{} rows", rows.len());
+    let first = &rows[0];
+    let last = rows.last().unwrap();
+    assert_eq!(&first[4..], [1.0, 1.0, 0.0]);
+    assert!((last[6] - 4.0 / 3.0).abs() < 1e-6, "{last:?}");
+    for w in rows.windows(2) {
+        assert!(w[1][0] > w[0][0], "time increases");
+        assert_eq!(w[1][1], w[1][2], "glued balls move together");
+    }
+}
+
+#[test]
+fn unknown_key_is_named_with_a_suggestion() {
+    let dir = tempfile::tempdir().unwrap();
+    let f = write(
+        &dir,
+        "s.toml",
+        "balls = 5\nradus = 0.01\nvelocity = [1, 0, 0, 0, 0]\n",
+    );
+    let err = bad_input(&["run", &f]);
+    assert!(
+        err.contains("s.toml:2")
+            && err.contains("`radus`")
+            && err.contains("did you mean `radius`"),
+        "{err}"
+    );
+}
+
+#[test]
+fn invalid_values_name_file_line_key_value_and_range() {
+    let dir = tempfile::tempdir().unwrap();
+    let cases = [
+        (
+            "balls = 3\npoisson_ratio = 0.5\nvelocity = [1, 0, 0]\n",
+            "s.toml:2",
+            "`poisson_ratio` = 0.5",
+            "[0, 0.5)",
+        ),
+        (
+            "balls = 3\nvelocity = [1, 0, 0]\nmass = [1, -2, 1]\n",
+            "s.toml:3",
+            "`mass[1]` = -2",
+            "> 0",
+        ),
+        (
+            "balls = 3\nvelocity = [1, 0]\n",
+            "s.toml:2",
+            "`velocity`",
+            "3 values",
+        ),
+        (
+            "balls = 3\ngap = [0, 1, 2]\nvelocity = [1, 0, 0]\n",
+            "s.toml:2",
+            "`gap`",
+            "2 values",
+        ),
+        (
+            "balls = 3\nglue = \"=x\"\nvelocity = [1, 0, 0]\n",
+            "s.toml:2",
+            "`glue`",
+            "`=` (glued) or `-`",
+        ),
+        (
+            "balls = 3\nglue = \"=-\"\nvelocity = [1, 0, 0]\n",
+            "s.toml",
+            "`velocity`",
+            "same velocity",
+        ),
+        (
+            "balls = 3\nradius = nan\nvelocity = [1, 0, 0]\n",
+            "s.toml:2",
+            "`radius` = NaN",
+            "finite",
+        ),
+        (
+            "balls = 1\nvelocity = [1]\n",
+            "s.toml:1",
+            "`balls` = 1",
+            "2 ..= 64",
+        ),
+        (
+            "balls = 3\nvelocity = [1, 0, 0]\n[solver]\nprecision = \"f16\"\n",
+            "s.toml",
+            "`solver.precision`",
+            "\"f32\" or \"f64\"",
+        ),
+        (
+            "balls = 3\nvelocity = \"fast\"\n",
+            "s.toml:2",
+            "velocity",
+            "sequence",
+        ),
+        ("balls = 3\nvelocity = [1, 0, 0\n", "s.toml:2", "", ""),
+    ];
+    for (text, at, key, allowed) in cases {
+        let f = write(&dir, "s.toml", text);
+        let err = bad_input(&["run", &f]);
+        assert!(
+            err.contains(at) && err.contains(key) && err.contains(allowed),
+            "{text:?} gave\n{err}"
+        );
+        assert!(!err.contains("panicked"), "{err}");
+    }
+}
+
+#[test]
+fn bad_flags_and_missing_files_are_clear() {
+    let err = bad_input(&["run", "no-such-scene"]);
+    assert!(
+        err.contains("no-such-scene") && err.contains("cradle-1"),
+        "{err}"
+    );
+    let err = bad_input(&["run", "cradle-1", "--precision", "f16"]);
+    assert!(err.contains("--precision f16"), "{err}");
+    let err = bad_input(&["run", "cradle-1", "--tolerance", "2"]);
+    assert!(err.contains("--tolerance"), "{err}");
+    let err = bad_input(&[
+        "run",
+        "cradle-1",
+        "--precision",
+        "f32",
+        "--tolerance",
+        "1e-9",
+    ]);
+    assert!(err.contains("f32"), "{err}");
+}
