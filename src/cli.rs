@@ -42,8 +42,62 @@ pub enum Command {
         #[command(flatten)]
         solver: SolverFlags,
     },
+    /// Run every scene of a sweep file and write one CSV row per scene.
+    #[command(
+        after_help = "Examples:\n  cradle sweep examples/mass_gap.toml --out results/mass_gap.csv\n  cradle sweep big.toml --out big.csv --resume\n  cradle sweep big.toml --out part2.csv --shard 2/4   # then: cradle merge part*.csv --out big.csv"
+    )]
+    Sweep {
+        /// Sweep TOML file.
+        sweep: PathBuf,
+        /// Output CSV (written as FILE.partial, renamed when complete; FILE.json beside it).
+        #[arg(long, value_name = "FILE")]
+        out: PathBuf,
+        /// auto: a hardware GPU if there is one, else the CPU.
+        #[arg(long, value_enum, default_value_t = BackendChoice::Auto)]
+        backend: BackendChoice,
+        /// Continue an interrupted run into the same --out file.
+        #[arg(long)]
+        resume: bool,
+        /// Run only shard K of N (1-based, contiguous id ranges), e.g. 2/4.
+        #[arg(long, value_name = "K/N")]
+        shard: Option<String>,
+        /// Worker threads for the CPU backend [default: all cores].
+        #[arg(long)]
+        threads: Option<usize>,
+        #[command(flatten)]
+        solver: SolverFlags,
+    },
+    /// Join shard CSVs into one; refuses if any id is missing or repeated.
+    Merge {
+        /// Shard CSV files, in any order.
+        #[arg(required = true)]
+        inputs: Vec<PathBuf>,
+        #[arg(long, value_name = "FILE")]
+        out: PathBuf,
+    },
     /// List the built-in scenes.
     Scenes,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum BackendChoice {
+    Auto,
+    Gpu,
+    Cpu,
+}
+
+/// Parse `K/N` with 1 ≤ K ≤ N.
+pub fn parse_shard(s: &str) -> Result<(u64, u64), InputError> {
+    let bad = || flag("--shard", s, "K/N with integers 1 ≤ K ≤ N, e.g. 2/4");
+    let (k, n) = s.split_once('/').ok_or_else(bad)?;
+    let (k, n): (u64, u64) = (
+        k.trim().parse().map_err(|_| bad())?,
+        n.trim().parse().map_err(|_| bad())?,
+    );
+    if k == 0 || n == 0 || k > n {
+        return Err(bad());
+    }
+    Ok((k, n))
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -104,6 +158,14 @@ pub fn flag(flag: &str, value: &str, allowed: &str) -> InputError {
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn shards_parse() {
+        assert_eq!(super::parse_shard("2/4").unwrap(), (2, 4));
+        for bad in ["0/4", "5/4", "2", "a/b", "1/0"] {
+            assert!(super::parse_shard(bad).is_err(), "{bad}");
+        }
+    }
+
     #[test]
     fn clap_definition_is_consistent() {
         use clap::CommandFactory;

@@ -7,10 +7,12 @@
 // Numeric kernels index several parallel arrays by the same body or contact.
 #![allow(clippy::needless_range_loop)]
 
+pub mod backend;
 pub mod cli;
 pub mod engine;
 pub mod error;
 pub mod output;
 pub mod scene;
+pub mod sweep;
 
 pub use error::InputError;

@@ -8,10 +8,14 @@ use std::process::ExitCode;
 use anyhow::Context;
 use clap::Parser;
 
-use hertz_cradle::cli::{flag, Cli, Command, Format};
+use hertz_cradle::backend::cpu::Cpu;
+use hertz_cradle::backend::Backend;
+use hertz_cradle::cli::{flag, parse_shard, BackendChoice, Cli, Command, Format};
 use hertz_cradle::engine::{simulate_chain, Chain, Silent, Solver};
+use hertz_cradle::output::merge::merge;
 use hertz_cradle::output::{row, trace::TraceWriter};
 use hertz_cradle::scene::{builtin, Scene};
+use hertz_cradle::sweep::{run::Options, Sweep};
 use hertz_cradle::InputError;
 
 fn main() -> ExitCode {
@@ -41,6 +45,92 @@ fn is_broken_pipe(e: &anyhow::Error) -> bool {
 
 fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
+        Command::Sweep {
+            sweep,
+            out,
+            backend,
+            resume,
+            shard,
+            threads,
+            solver,
+        } => {
+            let overrides = solver.overrides()?;
+            let shard = shard.as_deref().map(parse_shard).transpose()?;
+            let spec = Sweep::load(&sweep)?;
+            if let Some(t) = threads {
+                if t == 0 {
+                    return Err(flag("--threads", "0", "at least 1").into());
+                }
+                rayon::ThreadPoolBuilder::new()
+                    .num_threads(t)
+                    .build_global()?;
+            }
+            if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
+                if !dir.is_dir() {
+                    return Err(flag(
+                        "--out",
+                        &out.display().to_string(),
+                        "a file in an existing directory",
+                    )
+                    .into());
+                }
+            }
+            let cpu = Cpu;
+            let backend: &dyn Backend = match backend {
+                BackendChoice::Cpu => &cpu,
+                BackendChoice::Auto => {
+                    eprintln!(
+                        "cradle: no GPU backend in this build yet; running on the CPU ({})",
+                        cpu.adapter()
+                    );
+                    &cpu
+                }
+                BackendChoice::Gpu => {
+                    return Err(flag(
+                        "--backend",
+                        "gpu",
+                        "the GPU backend is not available in this build yet; use --backend cpu",
+                    )
+                    .into())
+                }
+            };
+            let opts = Options {
+                out: out.clone(),
+                resume,
+                shard,
+                overrides,
+                command: std::env::args().collect(),
+            };
+            let s = hertz_cradle::sweep::run::run(&spec, &opts, backend)?;
+            if s.already_complete {
+                eprintln!(
+                    "cradle: {} is already complete; nothing to resume",
+                    out.display()
+                );
+            } else {
+                eprintln!(
+                    "cradle: {} scenes ({} ok, {} not ok) in {:.2} s, {:.0} scenes/s, backend {} ({}) -> {}",
+                    s.scenes,
+                    s.ok,
+                    s.scenes - s.ok,
+                    s.wall_s,
+                    s.scenes as f64 / s.wall_s.max(1e-9),
+                    backend.name(),
+                    backend.adapter(),
+                    out.display()
+                );
+            }
+            Ok(())
+        }
+        Command::Merge { inputs, out } => {
+            let n = merge(&inputs, &out)?;
+            eprintln!(
+                "cradle: merged {} files, {n} rows -> {}",
+                inputs.len(),
+                out.display()
+            );
+            Ok(())
+        }
         Command::Scenes => {
             let mut out = std::io::stdout().lock();
             for b in builtin::BUILTINS {

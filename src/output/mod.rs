@@ -1,4 +1,7 @@
 //! Writers: outcome rows (CSV and tables) and trajectories.
 
+pub mod merge;
+pub mod partial;
 pub mod row;
+pub mod sidecar;
 pub mod trace;

@@ -4,7 +4,7 @@
 //! one value per ball) → [`crate::engine::Chain`] (rigid bodies) → backend.
 
 pub mod builtin;
-mod spec;
+pub(crate) mod spec;
 
 pub use spec::{DampingSpec, LaunchSpec, PendulumSpec, PerBall, SceneSpec, SolverSpec, StopSpec};
 

@@ -1,0 +1,46 @@
+//! `FILE.csv.json`: how a CSV was made — the resolved sweep, crate version,
+//! git revision, backend and adapter, solver settings, wall time, scenes/s.
+
+use std::path::{Path, PathBuf};
+
+use serde::Serialize;
+
+pub fn path(csv: &Path) -> PathBuf {
+    let mut s = csv.as_os_str().to_owned();
+    s.push(".json");
+    PathBuf::from(s)
+}
+
+#[derive(Serialize)]
+pub struct Sidecar<'a, S: Serialize> {
+    pub tool: &'static str,
+    pub version: &'static str,
+    pub git_revision: &'static str,
+    pub command: Vec<String>,
+    pub sweep_file: &'a str,
+    pub sweep: &'a S,
+    pub backend: &'a str,
+    pub adapter: &'a str,
+    pub solver: serde_json::Value,
+    /// The scene ids in this file: [first, end).
+    pub ids: [u64; 2],
+    pub total_scenes: u64,
+    pub shard: Option<[u64; 2]>,
+    pub scenes_ok: u64,
+    pub scenes_not_ok: u64,
+    /// Wall time of this run (s); a resumed run counts only its own part.
+    pub wall_s: f64,
+    pub scenes_per_s: f64,
+    pub resumed_from_row: u64,
+}
+
+pub const GIT_REVISION: &str = match option_env!("CRADLE_GIT_REV") {
+    Some(r) => r,
+    None => "unknown",
+};
+
+pub fn write<S: Serialize>(csv: &Path, s: &Sidecar<S>) -> anyhow::Result<()> {
+    let text = serde_json::to_string_pretty(s)?;
+    std::fs::write(path(csv), text + "\n")?;
+    Ok(())
+}

@@ -1,0 +1,304 @@
+//! One sweep axis: a parameter (`mass[2]`, `gap`, `glue`, …) and its values,
+//! computed as start + i·step (linspace) or start·ratio^(i/(n−1)) (logspace),
+//! never accumulated; the last value is the given stop exactly.
+
+use serde::Serialize;
+
+use crate::scene::{
+    DampingSpec, LaunchSpec, PendulumSpec, PerBall, Scene, SceneSpec, SolverSpec, StopSpec,
+};
+
+/// Most values one axis may have.
+pub const MAX_AXIS_VALUES: usize = 10_000_000;
+
+/// What a parameter name refers to.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Kind {
+    /// One value per ball; index optional.
+    PerBall,
+    /// One value per contact (`gap`); index optional.
+    PerContact,
+    /// One value per ball; index required (`velocity[0]`).
+    Velocity,
+    /// A string of N−1 `=`/`-` characters.
+    Glue,
+    /// An integer.
+    Integer,
+    /// A plain number.
+    Number,
+}
+
+/// Parameters a sweep axis may name, with their kind.
+pub const PARAMS: &[(&str, Kind)] = &[
+    ("balls", Kind::Integer),
+    ("radius", Kind::PerBall),
+    ("density", Kind::PerBall),
+    ("mass", Kind::PerBall),
+    ("young_modulus", Kind::PerBall),
+    ("poisson_ratio", Kind::PerBall),
+    ("gap", Kind::PerContact),
+    ("glue", Kind::Glue),
+    ("velocity", Kind::Velocity),
+    ("launch.balls", Kind::Integer),
+    ("launch.height", Kind::Number),
+    ("launch.velocity", Kind::Number),
+    ("restitution", Kind::Number),
+    ("air_drag", Kind::Number),
+    ("length", Kind::Number),
+    ("gravity", Kind::Number),
+    ("duration", Kind::Number),
+    ("tolerance", Kind::Number),
+    ("dt", Kind::Number),
+];
+
+/// A parsed `param` string: name, kind and optional index.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Param {
+    pub name: String,
+    pub kind: Kind,
+    pub index: Option<usize>,
+}
+
+impl Param {
+    /// Parse `name` or `name[i]`; `Err` carries the allowed-values text.
+    pub fn parse(s: &str) -> Result<Param, String> {
+        let (name, index) = match s.split_once('[') {
+            None => (s, None),
+            Some((n, rest)) => {
+                let i = rest
+                    .strip_suffix(']')
+                    .and_then(|i| i.trim().parse::<usize>().ok())
+                    .ok_or_else(|| "an index written `name[i]` with i = 0, 1, …".to_string())?;
+                (n, Some(i))
+            }
+        };
+        let Some(&(_, kind)) = PARAMS.iter().find(|(n, _)| *n == name) else {
+            let hint = crate::error::closest(name, PARAMS.iter().map(|p| p.0))
+                .map_or(String::new(), |c| format!("did you mean `{c}`? "));
+            return Err(format!(
+                "{hint}one of: {}",
+                PARAMS.iter().map(|p| p.0).collect::<Vec<_>>().join(", ")
+            ));
+        };
+        match (kind, index) {
+            (Kind::Velocity, None) => {
+                Err("`velocity[i]`: the velocity of ball i needs an index".into())
+            }
+            (Kind::PerBall | Kind::PerContact | Kind::Velocity, _) | (_, None) => Ok(Param {
+                name: name.to_string(),
+                kind,
+                index,
+            }),
+            (_, Some(_)) => Err(format!("`{name}` takes no index")),
+        }
+    }
+
+    /// Largest index this parameter allows in a chain of `n` balls.
+    pub fn index_limit(&self, n: usize) -> Option<usize> {
+        match self.kind {
+            Kind::PerBall | Kind::Velocity => Some(n),
+            Kind::PerContact => Some(n - 1),
+            _ => None,
+        }
+    }
+}
+
+/// One value of an axis.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+#[serde(untagged)]
+pub enum Value {
+    Num(f64),
+    Text(String),
+}
+
+impl Value {
+    /// As written in the CSV column of the axis.
+    pub fn csv(&self) -> String {
+        match self {
+            Value::Num(x) => crate::output::row::num(*x),
+            Value::Text(s) => s.clone(),
+        }
+    }
+}
+
+impl std::fmt::Display for Value {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Value::Num(x) => write!(f, "{x}"),
+            Value::Text(s) => write!(f, "{s:?}"),
+        }
+    }
+}
+
+/// Evenly spaced values, start + i·step.
+pub fn linspace(start: f64, stop: f64, num: usize) -> Vec<f64> {
+    if num == 1 {
+        return vec![start];
+    }
+    let step = (stop - start) / (num - 1) as f64;
+    (0..num)
+        .map(|i| {
+            if i + 1 == num {
+                stop
+            } else {
+                start + i as f64 * step
+            }
+        })
+        .collect()
+}
+
+/// Geometrically spaced values between `start` and `stop` (both > 0).
+pub fn logspace(start: f64, stop: f64, num: usize) -> Vec<f64> {
+    if num == 1 {
+        return vec![start];
+    }
+    let (a, b) = (start.ln(), stop.ln());
+    let step = (b - a) / (num - 1) as f64;
+    (0..num)
+        .map(|i| {
+            if i + 1 == num {
+                stop
+            } else {
+                (a + i as f64 * step).exp()
+            }
+        })
+        .collect()
+}
+
+/// Apply `param = value` to a scene as written. `base` is the validated base
+/// scene, used to turn `density` into masses or `[launch]` into velocities
+/// before one element is changed.
+pub fn apply(spec: &mut SceneSpec, base: &Scene, p: &Param, value: &Value) {
+    let n = spec.balls.map_or(base.n, |b| b.max(0) as usize);
+    let num = match value {
+        Value::Num(x) => *x,
+        Value::Text(_) => f64::NAN,
+    };
+    match p.name.as_str() {
+        "balls" => spec.balls = Some(num as i64),
+        "radius" => set(&mut spec.radius, p.index, num, n, &base.radius),
+        "density" => set(
+            &mut spec.density,
+            p.index,
+            num,
+            n,
+            &vec![crate::scene::DEFAULT_DENSITY; base.n],
+        ),
+        "mass" => {
+            if spec.mass.is_none() {
+                spec.mass = Some(PerBall::List(base.mass.clone()));
+                spec.density = None;
+            }
+            set(&mut spec.mass, p.index, num, n, &base.mass)
+        }
+        "young_modulus" => set(
+            &mut spec.young_modulus,
+            p.index,
+            num,
+            n,
+            &base.young_modulus,
+        ),
+        "poisson_ratio" => set(
+            &mut spec.poisson_ratio,
+            p.index,
+            num,
+            n,
+            &base.poisson_ratio,
+        ),
+        "gap" => set(&mut spec.gap, p.index, num, n.saturating_sub(1), &base.gap),
+        "glue" => {
+            spec.glue = Some(match value {
+                Value::Text(s) => s.clone(),
+                Value::Num(x) => x.to_string(),
+            })
+        }
+        "velocity" => {
+            let v = spec.velocity.get_or_insert_with(|| base.velocity.clone());
+            spec.launch = None;
+            let i = p.index.unwrap_or(0);
+            if v.len() <= i {
+                v.resize(i + 1, 0.0);
+            }
+            v[i] = num;
+        }
+        "launch.balls" => {
+            spec.launch.get_or_insert_with(LaunchSpec::default).balls = Some(num as i64)
+        }
+        "launch.height" => spec.launch.get_or_insert_with(LaunchSpec::default).height = Some(num),
+        "launch.velocity" => {
+            spec.launch.get_or_insert_with(LaunchSpec::default).velocity = Some(num)
+        }
+        "restitution" => {
+            spec.damping
+                .get_or_insert_with(DampingSpec::default)
+                .restitution = Some(num)
+        }
+        "air_drag" => {
+            spec.damping
+                .get_or_insert_with(DampingSpec::default)
+                .air_drag = Some(num)
+        }
+        "length" => {
+            spec.pendulum
+                .get_or_insert_with(PendulumSpec::default)
+                .length = Some(num)
+        }
+        "gravity" => {
+            spec.pendulum
+                .get_or_insert_with(PendulumSpec::default)
+                .gravity = Some(num)
+        }
+        "duration" => spec.stop.get_or_insert_with(StopSpec::default).duration = Some(num),
+        "tolerance" => {
+            let s = spec.solver.get_or_insert_with(SolverSpec::default);
+            s.tolerance = Some(num);
+            s.dt = None;
+        }
+        "dt" => {
+            let s = spec.solver.get_or_insert_with(SolverSpec::default);
+            s.dt = Some(num);
+            s.tolerance = None;
+        }
+        other => unreachable!("parameter {other} passed Param::parse"),
+    }
+}
+
+/// Set a per-ball quantity; a quantity the scene did not write starts from
+/// the base scene's resolved values (`fallback`).
+fn set(slot: &mut Option<PerBall>, index: Option<usize>, value: f64, n: usize, fallback: &[f64]) {
+    let pb = slot.get_or_insert_with(|| PerBall::List(fallback.to_vec()));
+    pb.set(index, value, n);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ranges_hit_both_ends_exactly() {
+        let l = linspace(0.0, 2e-5, 100);
+        assert_eq!((l[0], l[99], l.len()), (0.0, 2e-5, 100));
+        assert_eq!(l[37], 37.0 * (2e-5 / 99.0));
+        let g = logspace(0.1, 10.0, 5);
+        assert_eq!(g[4], 10.0);
+        for (x, want) in
+            g.iter()
+                .zip([0.1, 1.0 / 3.1622776601683795, 1.0, 3.1622776601683795, 10.0])
+        {
+            assert!((x / want - 1.0).abs() < 1e-14, "{x} {want}");
+        }
+    }
+
+    #[test]
+    fn params_parse_with_indices() {
+        assert_eq!(Param::parse("mass[2]").unwrap().index, Some(2));
+        assert_eq!(Param::parse("gap").unwrap().kind, Kind::PerContact);
+        assert!(Param::parse("velocity").is_err());
+        assert!(Param::parse("balls[1]").is_err());
+        assert!(Param::parse("mass[x]").is_err());
+        assert!(Param::parse("mas")
+            .unwrap_err()
+            .contains("did you mean `mass`"));
+    }
+}

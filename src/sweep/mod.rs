@@ -1,0 +1,337 @@
+//! Sweeps (SPEC §4): a base scene and `[[axis]]` tables; the cartesian
+//! product, scene id = row-major index with the first axis slowest. Scenes are
+//! produced one id at a time, never materialised as a whole.
+
+pub mod axis;
+pub mod run;
+
+use std::path::Path;
+
+use serde::{Deserialize, Serialize};
+use toml::Spanned;
+
+use crate::error::{InputError, Source};
+use crate::scene::spec::RawScene;
+use crate::scene::{Scene, SceneSpec};
+pub use axis::{Param, Value};
+
+/// Most scenes one sweep may have (refused before anything is allocated).
+pub const MAX_SCENES: u64 = 1_000_000_000;
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawSweep {
+    #[allow(dead_code)]
+    description: Option<String>,
+    scene: Option<Spanned<toml::Value>>,
+    axis: Option<Vec<Spanned<RawAxis>>>,
+}
+
+/// Read again for an inline `[scene]`, so its spans point into the sweep file.
+#[derive(Deserialize)]
+struct InlineScene {
+    scene: RawScene,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawAxis {
+    param: Option<String>,
+    values: Option<Vec<toml::Value>>,
+    linspace: Option<Vec<f64>>,
+    logspace: Option<Vec<f64>>,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct Axis {
+    /// The `param` text as written: the CSV column name.
+    pub name: String,
+    pub param: Param,
+    pub values: Vec<Value>,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct Sweep {
+    #[serde(skip)]
+    pub origin: String,
+    pub description: Option<String>,
+    /// The base scene as written (after defaults are known: see `base`).
+    pub scene: SceneSpec,
+    #[serde(skip)]
+    pub base: Scene,
+    pub axes: Vec<Axis>,
+    pub total: u64,
+    /// Largest chain length over the sweep: the number of `v_i` columns.
+    pub width: usize,
+}
+
+impl Sweep {
+    pub fn load(path: &Path) -> Result<Sweep, InputError> {
+        Self::parse(
+            &Source::read(path)?,
+            path.parent().unwrap_or(Path::new(".")),
+        )
+    }
+
+    /// Parse a sweep document; `dir` resolves a relative `scene = "file"`.
+    pub fn parse(src: &Source, dir: &Path) -> Result<Sweep, InputError> {
+        let raw: RawSweep = src.parse_toml()?;
+        let origin = src.name.clone();
+        let invalid =
+            |line: Option<usize>, key: &str, value: String, allowed: String| InputError::Invalid {
+                origin: origin.clone(),
+                line,
+                key: key.to_string(),
+                value,
+                allowed,
+            };
+        let scene_spec = match &raw.scene {
+            None => {
+                return Err(InputError::Missing {
+                    origin: origin.clone(),
+                    line: None,
+                    key: "scene".into(),
+                    help: "`scene = \"file.toml\"` (relative to the sweep file) or an inline [scene] table".into(),
+                })
+            }
+            Some(s) => match s.get_ref() {
+                toml::Value::String(file) => {
+                    let p = dir.join(file);
+                    let scene_src = Source::read(&p)?;
+                    SceneSpec::parse(&scene_src)?
+                }
+                toml::Value::Table(_) => {
+                    let inline: InlineScene = src.parse_toml()?;
+                    SceneSpec::from_raw(src, inline.scene)?
+                }
+                other => {
+                    return Err(invalid(
+                        Some(src.line(s.span().start)),
+                        "scene",
+                        other.to_string(),
+                        "a scene file name (string) or a [scene] table".into(),
+                    ))
+                }
+            },
+        };
+        let base = scene_spec.validate()?;
+
+        let mut axes = Vec::new();
+        for a in raw.axis.unwrap_or_default() {
+            let line = Some(src.line(a.span().start));
+            let a = a.into_inner();
+            let Some(name) = a.param else {
+                return Err(InputError::Missing {
+                    origin: origin.clone(),
+                    line,
+                    key: "axis.param".into(),
+                    help: "the scene key this axis varies, e.g. \"mass[2]\" or \"gap\"".into(),
+                });
+            };
+            let param = Param::parse(&name)
+                .map_err(|allowed| invalid(line, "axis.param", format!("{name:?}"), allowed))?;
+            let kinds = [
+                a.values.is_some(),
+                a.linspace.is_some(),
+                a.logspace.is_some(),
+            ];
+            if kinds.iter().filter(|k| **k).count() != 1 {
+                return Err(invalid(
+                    line,
+                    &name,
+                    format!("{} range kinds", kinds.iter().filter(|k| **k).count()),
+                    "exactly one of `values`, `linspace`, `logspace`".into(),
+                ));
+            }
+            let range = |key: &str, r: &[f64]| -> Result<(f64, f64, usize), InputError> {
+                let bad = || {
+                    invalid(line, key, format!("{r:?}"), format!("[start, stop, num] with finite start/stop and an integer num in 1 ..= {}", axis::MAX_AXIS_VALUES))
+                };
+                match r {
+                    [a, b, n]
+                        if a.is_finite()
+                            && b.is_finite()
+                            && n.fract() == 0.0
+                            && *n >= 1.0
+                            && *n <= axis::MAX_AXIS_VALUES as f64 =>
+                    {
+                        Ok((*a, *b, *n as usize))
+                    }
+                    [_, _, n] if *n < 1.0 => Err(invalid(
+                        line,
+                        key,
+                        format!("{r:?}"),
+                        "at least 1 point (num ≥ 1)".into(),
+                    )),
+                    _ => Err(bad()),
+                }
+            };
+            let values: Vec<Value> = if let Some(v) = &a.values {
+                if v.is_empty() {
+                    return Err(invalid(
+                        line,
+                        "values",
+                        "[]".into(),
+                        "at least one value".into(),
+                    ));
+                }
+                if v.len() > axis::MAX_AXIS_VALUES {
+                    return Err(invalid(
+                        line,
+                        "values",
+                        format!("{} values", v.len()),
+                        format!("at most {}", axis::MAX_AXIS_VALUES),
+                    ));
+                }
+                v.iter()
+                    .map(|x| match x {
+                        toml::Value::Float(f) => Ok(Value::Num(*f)),
+                        toml::Value::Integer(i) => Ok(Value::Num(*i as f64)),
+                        toml::Value::String(s) => Ok(Value::Text(s.clone())),
+                        other => Err(invalid(
+                            line,
+                            "values",
+                            other.to_string(),
+                            "numbers, or strings for `glue`".into(),
+                        )),
+                    })
+                    .collect::<Result<_, _>>()?
+            } else if let Some(r) = &a.linspace {
+                let (s, e, n) = range("linspace", r)?;
+                axis::linspace(s, e, n)
+                    .into_iter()
+                    .map(Value::Num)
+                    .collect()
+            } else {
+                let r = a.logspace.as_deref().unwrap_or_default();
+                let (s, e, n) = range("logspace", r)?;
+                if s <= 0.0 || e <= 0.0 {
+                    return Err(invalid(
+                        line,
+                        "logspace",
+                        format!("{r:?}"),
+                        "start and stop must be > 0 (they are values, not exponents)".into(),
+                    ));
+                }
+                axis::logspace(s, e, n)
+                    .into_iter()
+                    .map(Value::Num)
+                    .collect()
+            };
+            axes.push((
+                line,
+                Axis {
+                    name,
+                    param,
+                    values,
+                },
+            ));
+        }
+
+        let mut total: u64 = 1;
+        for (line, a) in &axes {
+            total = total
+                .checked_mul(a.values.len() as u64)
+                .filter(|t| *t <= MAX_SCENES)
+                .ok_or_else(|| {
+                    invalid(
+                        *line,
+                        &a.name,
+                        format!("{} values", a.values.len()),
+                        format!("the product of all axes must stay ≤ {MAX_SCENES} scenes"),
+                    )
+                })?;
+        }
+        let balls_axis = axes.iter().find(|(_, a)| a.param.name == "balls");
+        let width = match balls_axis {
+            Some((_, a)) => a
+                .values
+                .iter()
+                .map(|v| {
+                    if let Value::Num(x) = v {
+                        *x as usize
+                    } else {
+                        0
+                    }
+                })
+                .max()
+                .unwrap_or(base.n)
+                .max(base.n),
+            None => base.n,
+        };
+
+        // Every axis value must make a valid scene on its own: typos and
+        // out-of-range values fail now, before any work.
+        for (line, a) in &axes {
+            for v in &a.values {
+                let n = if balls_axis.is_some() { width } else { base.n };
+                if let (Some(i), Some(lim)) = (a.param.index, a.param.index_limit(n)) {
+                    if i >= lim {
+                        return Err(invalid(
+                            *line,
+                            &a.name,
+                            format!("index {i}"),
+                            format!("an index in 0 ..= {} for {} balls", lim - 1, n),
+                        ));
+                    }
+                }
+                let mut spec = scene_spec.clone();
+                axis::apply(&mut spec, &base, &a.param, v);
+                if let Err(e) = spec.validate() {
+                    return Err(invalid(
+                        *line,
+                        &a.name,
+                        v.to_string(),
+                        format!("makes an invalid scene: {e}"),
+                    ));
+                }
+            }
+        }
+        Ok(Sweep {
+            origin,
+            description: raw.description,
+            scene: scene_spec,
+            base,
+            axes: axes.into_iter().map(|(_, a)| a).collect(),
+            total,
+            width,
+        })
+    }
+
+    /// Index into each axis of scene `id` (first axis slowest).
+    pub fn indices(&self, id: u64) -> Vec<usize> {
+        let mut rest = id;
+        let mut idx = vec![0; self.axes.len()];
+        for (k, a) in self.axes.iter().enumerate().rev() {
+            let n = a.values.len() as u64;
+            idx[k] = (rest % n) as usize;
+            rest /= n;
+        }
+        idx
+    }
+
+    /// The scene with id `id`, or why this combination of values is invalid.
+    pub fn scene(&self, id: u64) -> Result<Scene, InputError> {
+        if self.axes.is_empty() {
+            return Ok(self.base.clone());
+        }
+        let mut spec = self.scene.clone();
+        for (a, i) in self.axes.iter().zip(self.indices(id)) {
+            axis::apply(&mut spec, &self.base, &a.param, &a.values[i]);
+        }
+        spec.validate()
+    }
+
+    /// The axis columns of scene `id`, as the CSV writes them.
+    pub fn axis_fields(&self, id: u64) -> Vec<String> {
+        self.axes
+            .iter()
+            .zip(self.indices(id))
+            .map(|(a, i)| a.values[i].csv())
+            .collect()
+    }
+
+    pub fn axis_names(&self) -> Vec<String> {
+        self.axes.iter().map(|a| a.name.clone()).collect()
+    }
+}
