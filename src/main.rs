@@ -9,12 +9,13 @@ use anyhow::Context;
 use clap::Parser;
 
 use hertz_cradle::backend::cpu::Cpu;
+use hertz_cradle::backend::gpu::{find_adapter, Gpu, Want};
 use hertz_cradle::backend::Backend;
 use hertz_cradle::cli::{flag, parse_shard, BackendChoice, Cli, Command, Format};
 use hertz_cradle::engine::{simulate_chain, Chain, Silent, Solver};
 use hertz_cradle::output::merge::merge;
 use hertz_cradle::output::{row, trace::TraceWriter};
-use hertz_cradle::scene::{builtin, Scene};
+use hertz_cradle::scene::{builtin, Precision, Scene};
 use hertz_cradle::sweep::{run::Options, Sweep};
 use hertz_cradle::InputError;
 
@@ -34,6 +35,44 @@ fn main() -> ExitCode {
             }
         }
     }
+}
+
+/// `auto`: a hardware GPU that can run `precision`, else the CPU (said on
+/// stderr); `gpu`: any adapter, software ones included, or an error.
+fn choose_backend(choice: BackendChoice, precision: Precision) -> anyhow::Result<Box<dyn Backend>> {
+    let want = match choice {
+        BackendChoice::Cpu => return Ok(Box::new(Cpu)),
+        BackendChoice::Auto => Want::Hardware,
+        BackendChoice::Gpu => Want::Any,
+    };
+    let Some(adapter) = find_adapter(want) else {
+        if choice == BackendChoice::Gpu {
+            return Err(flag("--backend", "gpu", "no GPU adapter found (not even a software one such as Mesa lavapipe); use --backend cpu").into());
+        }
+        eprintln!(
+            "cradle: no hardware GPU found; running on the CPU ({})",
+            Cpu.adapter()
+        );
+        return Ok(Box::new(Cpu));
+    };
+    let gpu = Gpu::new(&adapter)?;
+    if precision == Precision::F64 && !gpu.has_f64() {
+        if choice == BackendChoice::Gpu {
+            return Err(flag(
+                "--backend",
+                "gpu",
+                &format!(
+                    "{} has no 64-bit floats (SHADER_F64): add --precision f32",
+                    gpu.adapter()
+                ),
+            )
+            .into());
+        }
+        eprintln!("cradle: {} has no 64-bit floats; running f64 on the CPU ({}); --precision f32 would use the GPU", gpu.adapter(), Cpu.adapter());
+        return Ok(Box::new(Cpu));
+    }
+    eprintln!("cradle: backend gpu: {}", gpu.adapter());
+    Ok(Box::new(gpu))
 }
 
 fn is_broken_pipe(e: &anyhow::Error) -> bool {
@@ -75,25 +114,9 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                     .into());
                 }
             }
-            let cpu = Cpu;
-            let backend: &dyn Backend = match backend {
-                BackendChoice::Cpu => &cpu,
-                BackendChoice::Auto => {
-                    eprintln!(
-                        "cradle: no GPU backend in this build yet; running on the CPU ({})",
-                        cpu.adapter()
-                    );
-                    &cpu
-                }
-                BackendChoice::Gpu => {
-                    return Err(flag(
-                        "--backend",
-                        "gpu",
-                        "the GPU backend is not available in this build yet; use --backend cpu",
-                    )
-                    .into())
-                }
-            };
+            let precision = Solver::resolve(&spec.base, &overrides)?.precision;
+            let backend = choose_backend(backend, precision)?;
+            let backend = backend.as_ref();
             let opts = Options {
                 out: out.clone(),
                 resume,

@@ -16,13 +16,14 @@ impl Backend for Cpu {
         format!("rayon, {} threads", rayon::current_num_threads())
     }
 
-    fn run(&self, jobs: &[Job]) -> Vec<Outcome> {
-        jobs.par_iter()
+    fn run(&self, jobs: &[Job]) -> anyhow::Result<Vec<Outcome>> {
+        Ok(jobs
+            .par_iter()
             .with_min_len(4)
             .map(|j| match j {
                 Job::Run { chain, solver } => simulate_chain(chain, solver, &mut Silent),
                 Job::Invalid { n_balls } => Outcome::invalid(*n_balls),
             })
-            .collect()
+            .collect())
     }
 }

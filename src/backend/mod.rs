@@ -1,7 +1,8 @@
 //! Backends integrate a batch of prepared scenes and return one outcome each,
-//! in order. `cpu` is rayon over the Rust engine; `gpu` (wgpu/WGSL) follows.
+//! in order. `cpu` is rayon over the Rust engine; `gpu` runs its WGSL twin.
 
 pub mod cpu;
+pub mod gpu;
 
 use crate::engine::{Chain, Outcome, Solver};
 
@@ -19,5 +20,5 @@ pub trait Backend: Sync {
     /// What it runs on, for the summary line and the sidecar.
     fn adapter(&self) -> String;
     /// Outcomes of `jobs`, in the same order.
-    fn run(&self, jobs: &[Job]) -> Vec<Outcome>;
+    fn run(&self, jobs: &[Job]) -> anyhow::Result<Vec<Outcome>>;
 }

@@ -18,6 +18,10 @@ use crate::scene::MAX_BALLS;
 /// Closing speeds below this many ulps of v_in count as zero (see `integrate`).
 pub const CLOSING_SPEED_FLOOR: f64 = 256.0;
 
+/// A velocity at or above this magnitude (m/s) counts as non-finite; the
+/// shader has no `isfinite`, so both twins use this test.
+pub const FINITE_LIMIT: f64 = 1e30;
+
 /// Why a run stopped.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum End {
@@ -233,7 +237,10 @@ pub fn integrate<R: Real, O: Observer>(ch: &Chain, h: f64, lim: &Limits, obs: &m
             }
         }
         observe(t, &s, obs);
-        if s.v[..nb].iter().any(|v| !v.is_finite()) {
+        if s.v[..nb]
+            .iter()
+            .any(|v| v.is_nan() || v.abs() >= R::of(FINITE_LIMIT))
+        {
             break End::NonFinite;
         }
     };

@@ -15,14 +15,20 @@ pub use solver::{Overrides, Solver, StepRule};
 
 use crate::scene::Precision;
 
-/// Simulate one compiled chain with `solver`, reporting states to `obs`.
-pub fn simulate_chain<O: Observer>(chain: &Chain, solver: &Solver, obs: &mut O) -> Outcome {
+/// The step (`None`: nothing can collide) and caps of one run; both backends
+/// start from exactly these.
+pub fn plan(chain: &Chain, solver: &Solver) -> (Option<f64>, Limits) {
     let lim = Limits {
         max_steps: solver.max_steps,
         max_time: solver.max_time,
     };
+    (solver.dt(chain), lim)
+}
+
+/// Simulate one compiled chain with `solver`, reporting states to `obs`.
+pub fn simulate_chain<O: Observer>(chain: &Chain, solver: &Solver, obs: &mut O) -> Outcome {
+    let (dt, lim) = plan(chain, solver);
     // A chain where nothing can collide still runs: the integrator sees it settled.
-    let dt = solver.dt(chain);
     let h = dt.unwrap_or(f64::INFINITY);
     let run = match solver.precision {
         Precision::F64 => integrate::<f64, O>(chain, h, &lim, obs),

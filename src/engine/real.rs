@@ -4,7 +4,7 @@ use num_traits::Float;
 
 /// A float the integrator is generic over. Conversions go through `f64`,
 /// the precision every scene is specified and reported in.
-pub trait Real: Float + Send + Sync + std::fmt::Debug + 'static {
+pub trait Real: Float + bytemuck::Pod + Send + Sync + std::fmt::Debug + 'static {
     /// Name as written in `--precision` and the CSV sidecar.
     const NAME: &'static str;
     fn of(x: f64) -> Self;

@@ -115,7 +115,7 @@ pub fn run(sweep: &Sweep, opts: &Options, backend: &dyn Backend) -> Result<Summa
             .into_par_iter()
             .map(|i| sweep.job(i, &opts.overrides))
             .collect::<Result<_, _>>()?;
-        let outcomes = backend.run(&jobs);
+        let outcomes = backend.run(&jobs)?;
         let mut bytes = Vec::with_capacity(256 * jobs.len());
         {
             let mut w = csv::Writer::from_writer(&mut bytes);

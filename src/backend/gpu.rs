@@ -1,0 +1,406 @@
+//! The GPU backend: `shaders/integrate.wgsl` through wgpu, one invocation per
+//! scene. The context (device, pipelines, bind-group layout) is built once per
+//! sweep and reused for every batch; device creation is kept apart from the
+//! work so tests can bring their own adapter.
+
+use std::borrow::Cow;
+
+use anyhow::{anyhow, bail, Context, Result};
+use bytemuck::{Pod, Zeroable};
+use wgpu::util::DeviceExt;
+
+use super::{Backend, Job};
+use crate::engine::integrate::{Run, CLOSING_SPEED_FLOOR};
+use crate::engine::real::Real;
+use crate::engine::{plan, Chain, End, Outcome, Solver};
+use crate::scene::Precision;
+
+/// The shader source, f32 flavour; the f64 flavour swaps the `real` alias.
+pub const SHADER: &str = include_str!("../../shaders/integrate.wgsl");
+/// Threads per workgroup (`@workgroup_size` in the shader).
+const WORKGROUP: u32 = 64;
+/// `END_RUNNING` in the shader: the scene is still integrating.
+const END_RUNNING: u32 = 255;
+/// Dispatches submitted between two looks at which scenes are still running.
+const DISPATCHES_PER_ROUND: usize = 4;
+
+/// The shader text for one precision.
+pub fn shader_source(p: Precision) -> Cow<'static, str> {
+    match p {
+        Precision::F32 => Cow::Borrowed(SHADER),
+        Precision::F64 => Cow::Owned(SHADER.replacen("alias real = f32;", "alias real = f64;", 1)),
+    }
+}
+
+/// Per-scene header; layout-compatible with `struct Header` in the shader.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct GpuHeader {
+    pub nb: u32,
+    pub input: u32,
+    pub output: u32,
+    pub max_steps: u32,
+}
+const _: () = assert!(std::mem::size_of::<GpuHeader>() == 16);
+
+/// Which adapters a backend may use.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Want {
+    /// A hardware GPU only (`--backend auto`).
+    Hardware,
+    /// Any adapter, software ones (lavapipe) included (`--backend gpu`).
+    Any,
+}
+
+fn is_hardware(t: wgpu::DeviceType) -> bool {
+    matches!(
+        t,
+        wgpu::DeviceType::DiscreteGpu
+            | wgpu::DeviceType::IntegratedGpu
+            | wgpu::DeviceType::VirtualGpu
+    )
+}
+
+/// The adapter a backend would use, or `None`.
+pub fn find_adapter(want: Want) -> Option<wgpu::Adapter> {
+    let instance =
+        wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
+    let mut adapters = pollster::block_on(instance.enumerate_adapters(wgpu::Backends::all()));
+    // Discrete first, then integrated, virtual, software.
+    adapters.sort_by_key(|a| match a.get_info().device_type {
+        wgpu::DeviceType::DiscreteGpu => 0,
+        wgpu::DeviceType::IntegratedGpu => 1,
+        wgpu::DeviceType::VirtualGpu => 2,
+        wgpu::DeviceType::Cpu => 3,
+        wgpu::DeviceType::Other => 4,
+    });
+    adapters.into_iter().find(|a| {
+        let t = a.get_info().device_type;
+        is_hardware(t) || (want == Want::Any && t == wgpu::DeviceType::Cpu)
+    })
+}
+
+pub struct Gpu {
+    device: wgpu::Device,
+    queue: wgpu::Queue,
+    layout: wgpu::BindGroupLayout,
+    pipe_f32: wgpu::ComputePipeline,
+    /// `None` when the adapter lacks SHADER_F64.
+    pipe_f64: Option<wgpu::ComputePipeline>,
+    info: wgpu::AdapterInfo,
+    max_workgroups: u32,
+}
+
+impl Gpu {
+    /// Build the context on `adapter`: device, both pipelines, the layout.
+    pub fn new(adapter: &wgpu::Adapter) -> Result<Gpu> {
+        let info = adapter.get_info();
+        let f64_ok = adapter.features().contains(wgpu::Features::SHADER_F64);
+        let features = if f64_ok {
+            wgpu::Features::SHADER_F64
+        } else {
+            wgpu::Features::empty()
+        };
+        // Ask for what the adapter offers: storage bindings as large as it allows.
+        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+            label: Some("cradle"),
+            required_features: features,
+            required_limits: adapter.limits(),
+            ..Default::default()
+        }))
+        .with_context(|| format!("cannot open a device on {}", info.name))?;
+        let storage = |binding, read_only| wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility: wgpu::ShaderStages::COMPUTE,
+            ty: wgpu::BindingType::Buffer {
+                ty: wgpu::BufferBindingType::Storage { read_only },
+                has_dynamic_offset: false,
+                min_binding_size: None,
+            },
+            count: None,
+        };
+        // The shader's signature: headers, params (read); out_real, out_u32 (write).
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("cradle scenes"),
+            entries: &[
+                storage(0, true),
+                storage(1, true),
+                storage(2, false),
+                storage(3, false),
+            ],
+        });
+        let pl = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("cradle"),
+            bind_group_layouts: &[Some(&layout)],
+            immediate_size: 0,
+        });
+        let pipeline = |p: Precision| -> Result<wgpu::ComputePipeline> {
+            // Catch shader or pipeline errors as values instead of a panic.
+            let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
+            let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some("integrate.wgsl"),
+                source: wgpu::ShaderSource::Wgsl(shader_source(p)),
+            });
+            let pipe = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some("integrate"),
+                layout: Some(&pl),
+                module: &module,
+                entry_point: Some("main"),
+                compilation_options: Default::default(),
+                cache: None,
+            });
+            if let Some(e) = pollster::block_on(scope.pop()) {
+                bail!(
+                    "the {} shader does not build on {}: {e}",
+                    p.name(),
+                    info.name
+                );
+            }
+            Ok(pipe)
+        };
+        let pipe_f32 = pipeline(Precision::F32)?;
+        let pipe_f64 = if f64_ok {
+            Some(pipeline(Precision::F64)?)
+        } else {
+            None
+        };
+        let max_workgroups = device.limits().max_compute_workgroups_per_dimension;
+        Ok(Gpu {
+            device,
+            queue,
+            layout,
+            pipe_f32,
+            pipe_f64,
+            info,
+            max_workgroups,
+        })
+    }
+
+    pub fn info(&self) -> &wgpu::AdapterInfo {
+        &self.info
+    }
+
+    pub fn has_f64(&self) -> bool {
+        self.pipe_f64.is_some()
+    }
+
+    /// Integrate `jobs` (all valid) in precision `R`; one [`Run`] each.
+    fn runs<R: Real + Pod>(&self, jobs: &[(&Chain, &Solver)]) -> Result<Vec<Run>> {
+        let pipe = match std::mem::size_of::<R>() {
+            4 => &self.pipe_f32,
+            _ => self.pipe_f64.as_ref().ok_or_else(|| {
+                anyhow!("{} has no 64-bit float support (SHADER_F64): use --precision f32 or --backend cpu", self.info.name)
+            })?,
+        };
+        let mut out = Vec::with_capacity(jobs.len());
+        let per_dispatch = (self.max_workgroups as usize) * WORKGROUP as usize;
+        for part in jobs.chunks(per_dispatch) {
+            out.extend(self.dispatch::<R>(pipe, part)?);
+        }
+        Ok(out)
+    }
+
+    fn dispatch<R: Real + Pod>(
+        &self,
+        pipe: &wgpu::ComputePipeline,
+        jobs: &[(&Chain, &Solver)],
+    ) -> Result<Vec<Run>> {
+        let mut headers = Vec::with_capacity(jobs.len());
+        let mut params: Vec<R> = Vec::new();
+        // The state each scene starts from, exactly as the CPU integrator does.
+        let mut state: Vec<R> = Vec::new();
+        for (ch, solver) in jobs {
+            let (dt, lim) = plan(ch, solver);
+            let nb = ch.n_bodies();
+            headers.push(GpuHeader {
+                nb: nb as u32,
+                input: params.len() as u32,
+                output: state.len() as u32,
+                max_steps: lim.max_steps.min(u32::MAX as u64) as u32,
+            });
+            params.push(R::of(dt.unwrap_or(f64::INFINITY)));
+            params.push(R::of(CLOSING_SPEED_FLOOR) * R::epsilon() * R::of(ch.v_in()));
+            params.push(R::of(lim.max_time));
+            params.extend(ch.mass.iter().map(|m| R::of(1.0 / m)));
+            params.extend(ch.k.iter().map(|&k| R::of(k)));
+            params.extend(ch.r_min.iter().map(|r| R::of(1.0 / r)));
+            state.extend(ch.v0.iter().map(|&v| R::of(v)));
+            state.extend(ch.gap.iter().map(|&g| R::of(-g)));
+            state.extend([0.0, -1.0, -1.0, 0.0, 0.0].map(R::of)); // t, t_first, t_release, max_ov, max_ratio
+        }
+        let words0: Vec<u32> = jobs.iter().flat_map(|_| [END_RUNNING, 0]).collect();
+        let d = &self.device;
+        let init = |label, contents: &[u8], usage| {
+            d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(label),
+                contents,
+                usage,
+            })
+        };
+        let buffer = |label, size: u64, usage| {
+            d.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size,
+                usage,
+                mapped_at_creation: false,
+            })
+        };
+        let storage = wgpu::BufferUsages::STORAGE;
+        let state_usage = storage | wgpu::BufferUsages::COPY_SRC;
+        let staging = wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST;
+        let hdr = init("headers", bytemuck::cast_slice(&headers), storage);
+        let par = init("params", bytemuck::cast_slice(&params), storage);
+        let out_r = init("state_real", bytemuck::cast_slice(&state), state_usage);
+        let out_u = init("state_u32", bytemuck::cast_slice(&words0), state_usage);
+        let (size_r, size_u) = (out_r.size(), out_u.size());
+        let read_r = buffer("read_real", size_r, staging);
+        let read_u = buffer("read_u32", size_u, staging);
+        let bind = d.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("scenes"),
+            layout: &self.layout,
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: hdr.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: par.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 2,
+                    resource: out_r.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 3,
+                    resource: out_u.as_entire_binding(),
+                },
+            ],
+        });
+        let groups = (jobs.len() as u32).div_ceil(WORKGROUP);
+        // Dispatch rounds until no scene is still running; each round is a few
+        // dispatches of STEPS_PER_DISPATCH iterations, then a look at the ends.
+        let words = loop {
+            let mut enc = d.create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("integrate"),
+            });
+            for _ in 0..DISPATCHES_PER_ROUND {
+                let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some("integrate"),
+                    timestamp_writes: None,
+                });
+                pass.set_pipeline(pipe);
+                pass.set_bind_group(0, &bind, &[]);
+                pass.dispatch_workgroups(groups, 1, 1);
+            }
+            enc.copy_buffer_to_buffer(&out_u, 0, &read_u, 0, size_u);
+            self.queue.submit(Some(enc.finish()));
+            let words: Vec<u32> = self.read_back(&read_u)?;
+            if !words.iter().step_by(2).any(|&e| e == END_RUNNING) {
+                break words;
+            }
+        };
+        let mut enc = d.create_command_encoder(&wgpu::CommandEncoderDescriptor {
+            label: Some("read back"),
+        });
+        enc.copy_buffer_to_buffer(&out_r, 0, &read_r, 0, size_r);
+        self.queue.submit(Some(enc.finish()));
+        let reals: Vec<R> = self.read_back(&read_r)?;
+
+        Ok(headers
+            .iter()
+            .enumerate()
+            .map(|(i, h)| {
+                let (nb, o) = (h.nb as usize, h.output as usize);
+                let s = o + 2 * nb - 1;
+                let f = |j: usize| reals[o + j].to64();
+                let when = |x: f64| (x >= 0.0).then_some(x);
+                Run {
+                    end: match words[2 * i] {
+                        0 => End::Settled,
+                        1 => End::StepCap,
+                        2 => End::TimeCap,
+                        _ => End::NonFinite,
+                    },
+                    v: (0..nb).map(f).collect(),
+                    overlap: (nb..s - o).map(f).collect(),
+                    steps: words[2 * i + 1] as u64,
+                    t: f(s - o),
+                    t_first_contact: when(f(s - o + 1)),
+                    t_last_release: when(f(s - o + 2)),
+                    max_overlap: f(s - o + 3),
+                    max_overlap_ratio: f(s - o + 4),
+                }
+            })
+            .collect())
+    }
+
+    /// Wait for the GPU and copy a mappable buffer's contents out.
+    fn read_back<T: Pod>(&self, b: &wgpu::Buffer) -> Result<Vec<T>> {
+        let (tx, rx) = std::sync::mpsc::channel();
+        b.slice(..).map_async(wgpu::MapMode::Read, move |r| {
+            let _ = tx.send(r);
+        });
+        self.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map_err(|e| anyhow!("GPU poll failed: {e}"))?;
+        rx.recv()?
+            .map_err(|e| anyhow!("GPU read-back failed: {e}"))?;
+        let out = bytemuck::pod_collect_to_vec(
+            &b.slice(..)
+                .get_mapped_range()
+                .map_err(|e| anyhow!("GPU read-back failed: {e}"))?,
+        );
+        b.unmap();
+        Ok(out)
+    }
+}
+
+impl Backend for Gpu {
+    fn name(&self) -> &'static str {
+        "gpu"
+    }
+
+    fn adapter(&self) -> String {
+        format!(
+            "{} ({:?}, {:?})",
+            self.info.name, self.info.device_type, self.info.backend
+        )
+    }
+
+    fn run(&self, jobs: &[Job]) -> Result<Vec<Outcome>> {
+        let mut out: Vec<Option<Outcome>> = vec![None; jobs.len()];
+        for p in [Precision::F32, Precision::F64] {
+            let (idx, batch): (Vec<usize>, Vec<(&Chain, &Solver)>) = jobs
+                .iter()
+                .enumerate()
+                .filter_map(|(i, j)| match j {
+                    Job::Run { chain, solver } if solver.precision == p => {
+                        Some((i, (chain, solver)))
+                    }
+                    _ => None,
+                })
+                .unzip();
+            if batch.is_empty() {
+                continue;
+            }
+            let runs = match p {
+                Precision::F32 => self.runs::<f32>(&batch)?,
+                Precision::F64 => self.runs::<f64>(&batch)?,
+            };
+            for ((i, (ch, solver)), run) in idx.into_iter().zip(batch).zip(runs) {
+                let (dt, _) = plan(ch, solver);
+                out[i] = Some(Outcome::from_run(ch, &run, dt.unwrap_or(f64::NAN)));
+            }
+        }
+        Ok(out
+            .into_iter()
+            .zip(jobs)
+            .map(|(o, j)| match (o, j) {
+                (Some(o), _) => o,
+                (None, Job::Invalid { n_balls }) => Outcome::invalid(*n_balls),
+                (None, Job::Run { chain, .. }) => Outcome::invalid(chain.n_balls),
+            })
+            .collect())
+    }
+}

@@ -1,0 +1,252 @@
+//! One suite, every backend: each case is written once against `&dyn Backend`
+//! and instantiated for the CPU and the GPU. GPU cases skip with a printed
+//! reason when no adapter exists, unless CRADLE_REQUIRE_GPU=1 (CI sets it, with
+//! Mesa's lavapipe installed, so the WGSL shader really runs there).
+
+use std::sync::OnceLock;
+
+use hertz_cradle::backend::cpu::Cpu;
+use hertz_cradle::backend::gpu::{find_adapter, shader_source, Gpu, Want};
+use hertz_cradle::backend::{Backend, Job};
+use hertz_cradle::engine::{Chain, Outcome, Overrides, Solver, Status};
+use hertz_cradle::scene::{Precision, Scene};
+
+fn gpu() -> Option<&'static Gpu> {
+    static GPU: OnceLock<Option<Gpu>> = OnceLock::new();
+    GPU.get_or_init(|| match find_adapter(Want::Any) {
+        Some(a) => Some(Gpu::new(&a).expect("GPU context")),
+        None => {
+            if std::env::var("CRADLE_REQUIRE_GPU").as_deref() == Ok("1") {
+                panic!("CRADLE_REQUIRE_GPU=1 but no GPU adapter was found (install mesa-vulkan-drivers for lavapipe)");
+            }
+            eprintln!("SKIPPED: no GPU adapter (set CRADLE_REQUIRE_GPU=1 to make this a failure)");
+            None
+        }
+    })
+    .as_ref()
+}
+
+fn job(text: &str, precision: Precision, tolerance: Option<f64>) -> Job {
+    let s = Scene::from_toml_str("test", text).unwrap_or_else(|e| panic!("{e}\n{text}"));
+    let o = Overrides {
+        precision: Some(precision),
+        tolerance,
+        ..Default::default()
+    };
+    Job::Run {
+        chain: Chain::from_scene(&s).unwrap(),
+        solver: Solver::resolve(&s, &o).unwrap(),
+    }
+}
+
+fn v_in(j: &Job) -> f64 {
+    match j {
+        Job::Run { chain, .. } => chain.v_in(),
+        Job::Invalid { .. } => 1.0,
+    }
+}
+
+/// A fixed batch of 1200 varied scenes: chain lengths 2–9, masses 0.2–5 m,
+/// gaps 0 or up to 20 µm, glue patterns, 1–3 balls launched or random speeds.
+fn batch(precision: Precision) -> Vec<Job> {
+    let mut seed = 0x2545_f491_4f6c_dd1du64;
+    let mut rnd = move || {
+        seed ^= seed << 13;
+        seed ^= seed >> 7;
+        seed ^= seed << 17;
+        (seed >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let m = 7850.0 * 4.0 / 3.0 * std::f64::consts::PI * 0.0125f64.powi(3);
+    (0..1200)
+        .map(|_| {
+            let n = 2 + (rnd() * 8.0) as usize;
+            let mass: Vec<String> = (0..n)
+                .map(|_| format!("{}", m * (0.2 + 4.8 * rnd())))
+                .collect();
+            let gap: Vec<String> = (0..n - 1)
+                .map(|_| {
+                    if rnd() < 0.4 {
+                        "0".into()
+                    } else {
+                        format!("{}", 2e-5 * rnd())
+                    }
+                })
+                .collect();
+            let glue: Vec<bool> = (0..n - 1).map(|_| rnd() < 0.2).collect();
+            let mut v: Vec<f64> = if rnd() < 0.7 {
+                let k = 1 + (rnd() * 3.0) as usize;
+                let speed = 0.1 + 2.0 * rnd();
+                (0..n)
+                    .map(|i| if i < k.min(n - 1) { speed } else { 0.0 })
+                    .collect()
+            } else {
+                (0..n).map(|_| 2.0 * rnd() - 1.0).collect()
+            };
+            for i in 0..n - 1 {
+                if glue[i] {
+                    v[i + 1] = v[i];
+                }
+            }
+            let glue: String = glue.iter().map(|&g| if g { '=' } else { '-' }).collect();
+            let v: Vec<String> = v.iter().map(|x| x.to_string()).collect();
+            job(
+                &format!(
+                    "balls = {n}\nmass = [{}]\ngap = [{}]\nglue = \"{glue}\"\nvelocity = [{}]",
+                    mass.join(","),
+                    gap.join(","),
+                    v.join(",")
+                ),
+                precision,
+                Some(1e-4),
+            )
+        })
+        .collect()
+}
+
+fn max_diff(jobs: &[Job], a: &[Outcome], b: &[Outcome]) -> f64 {
+    let mut worst: f64 = 0.0;
+    for ((j, x), y) in jobs.iter().zip(a).zip(b) {
+        assert_eq!(x.status, y.status);
+        for (p, q) in x.v.iter().zip(&y.v) {
+            worst = worst.max((p - q).abs() / v_in(j));
+        }
+    }
+    worst
+}
+
+// ---- cases, written once ------------------------------------------------
+
+fn known_results(b: &dyn Backend) {
+    let jobs = [
+        job("balls = 2\nvelocity = [1.0, 0.0]", Precision::F64, None),
+        job(
+            "balls = 3\nglue = \"=-\"\nvelocity = [2.0, 2.0, 0.0]",
+            Precision::F64,
+            None,
+        ),
+        job(
+            "balls = 5\nvelocity = [1.0, 0, 0, 0, 0]",
+            Precision::F64,
+            None,
+        ),
+        job(
+            "balls = 5\ngap = 1e-4\nvelocity = [1.0, 0, 0, 0, 0]",
+            Precision::F64,
+            None,
+        ),
+        job(
+            "balls = 5\nvelocity = [1.0, 0, 0, 0, 0]",
+            Precision::F32,
+            None,
+        ),
+    ];
+    let want: [&[f64]; 5] = [
+        &[0.0, 1.0],
+        &[1.0 / 3.0, 1.0 / 3.0, 4.0 / 3.0],
+        &[-0.07109, -0.03027, -0.01446, 0.12704, 0.98878],
+        &[0.0, 0.0, 0.0, 0.0, 1.0],
+        &[-0.07109, -0.03027, -0.01446, 0.12704, 0.98878],
+    ];
+    let tol = [1e-9, 1e-9, 1.5e-5, 1e-9, 3e-5];
+    let out = b.run(&jobs).unwrap();
+    for (((j, o), w), t) in jobs.iter().zip(&out).zip(want).zip(tol) {
+        assert_eq!(o.status, Status::Ok, "{}: {o:?}", b.name());
+        let e =
+            o.v.iter()
+                .zip(w)
+                .map(|(v, w)| (v / v_in(j) - w).abs())
+                .fold(0.0, f64::max);
+        assert!(e < t, "{}: {:?} vs {w:?}: {e:e}", b.name(), o.v);
+        let p_tol = match j {
+            Job::Run { solver, .. } if solver.precision == Precision::F32 => 1e-5,
+            _ => 1e-12,
+        };
+        assert!(
+            o.momentum_error < p_tol,
+            "{}: momentum {:e}",
+            b.name(),
+            o.momentum_error
+        );
+    }
+}
+
+fn invalid_jobs_pass_through(b: &dyn Backend) {
+    let jobs = [
+        Job::Invalid { n_balls: 3 },
+        job("balls = 2\nvelocity = [1.0, 0.0]", Precision::F64, None),
+    ];
+    let out = b.run(&jobs).unwrap();
+    assert_eq!(out[0].status, Status::Invalid);
+    assert_eq!(out[1].status, Status::Ok);
+}
+
+// ---- instantiations -----------------------------------------------------
+
+#[test]
+fn cpu_known_results() {
+    known_results(&Cpu);
+}
+
+#[test]
+fn gpu_known_results() {
+    if let Some(g) = gpu() {
+        known_results(g);
+    }
+}
+
+#[test]
+fn cpu_invalid_jobs_pass_through() {
+    invalid_jobs_pass_through(&Cpu);
+}
+
+#[test]
+fn gpu_invalid_jobs_pass_through() {
+    if let Some(g) = gpu() {
+        invalid_jobs_pass_through(g);
+    }
+}
+
+#[test]
+fn gpu_matches_cpu_on_1200_scenes_f64() {
+    let Some(g) = gpu() else { return };
+    let jobs = batch(Precision::F64);
+    let (c, d) = (Cpu.run(&jobs).unwrap(), g.run(&jobs).unwrap());
+    let worst = max_diff(&jobs, &c, &d);
+    eprintln!(
+        "f64 GPU vs CPU: max |Δv|/v_in = {worst:e} over {} scenes on {}",
+        jobs.len(),
+        g.adapter()
+    );
+    assert!(worst <= 1e-12, "{worst:e}");
+    for (x, y) in c.iter().zip(&d) {
+        assert_eq!(x.steps, y.steps);
+    }
+}
+
+#[test]
+fn gpu_matches_cpu_on_1200_scenes_f32() {
+    let Some(g) = gpu() else { return };
+    let jobs = batch(Precision::F32);
+    let (c, d) = (Cpu.run(&jobs).unwrap(), g.run(&jobs).unwrap());
+    let worst = max_diff(&jobs, &c, &d);
+    eprintln!(
+        "f32 GPU vs CPU: max |Δv|/v_in = {worst:e} over {} scenes",
+        jobs.len()
+    );
+    assert!(worst <= 1e-6, "{worst:e}");
+}
+
+#[test]
+fn shaders_validate_with_naga() {
+    for p in [Precision::F32, Precision::F64] {
+        let src = shader_source(p);
+        let module = naga::front::wgsl::parse_str(&src)
+            .unwrap_or_else(|e| panic!("{}: {}", p.name(), e.emit_to_string(&src)));
+        naga::valid::Validator::new(
+            naga::valid::ValidationFlags::all(),
+            naga::valid::Capabilities::FLOAT64,
+        )
+        .validate(&module)
+        .unwrap_or_else(|e| panic!("{}: {e:?}", p.name()));
+    }
+}
