@@ -12,6 +12,8 @@
 // between dispatches and the host dispatches again until no scene is running.
 
 alias real = f32;
+// Kahan-compensated velocity and overlap updates (Real::COMPENSATED): on for f32.
+const COMPENSATED = true;
 
 const MAX_BALLS: u32 = 64u;
 // Why a run stopped (engine::End).
@@ -32,10 +34,10 @@ struct Header {
     // number of bodies
     nb: u32,
     // offset of this scene's parameters in `params`:
-    // h, v_floor, max_time, inv_m[nb], k[nc], inv_r[nc]
+    // h, v_floor, max_time, one (= 1.0), inv_m[nb], k[nc], inv_r[nc]
     input: u32,
-    // offset of its state (the results once it ends) in `out_real`:
-    // v[nb], d[nc], t, t_first (−1: none), t_release (−1: none), max_overlap, max_ratio
+    // offset of its state (the results once it ends) in `out_real`: v[nb], d[nc],
+    // cv[nb], cd[nc], t, t_first (−1: none), t_release (−1: none), max_overlap, max_ratio
     output: u32,
     max_steps: u32,
 }
@@ -48,10 +50,15 @@ struct Header {
 
 var<private> v: array<real, MAX_BALLS>;
 var<private> d: array<real, MAX_BALLS>;
+var<private> cv: array<real, MAX_BALLS>;
+var<private> cd: array<real, MAX_BALLS>;
 var<private> f: array<real, MAX_BALLS>;
 var<private> inv_m: array<real, MAX_BALLS>;
 var<private> k: array<real, MAX_BALLS>;
 var<private> inv_r: array<real, MAX_BALLS>;
+// 1.0, read from the params buffer: a value the shader compiler cannot see,
+// so it cannot simplify the compensated sums in `add` away ((x+y)−x → y).
+var<private> one: real;
 
 // engine::contact::hertz_force
 fn hertz_force(kc: real, dc: real) -> real {
@@ -61,13 +68,25 @@ fn hertz_force(kc: real, dc: real) -> real {
     return real(0.0);
 }
 
+// engine::integrate::add — x[i] += inc, Kahan-compensated when COMPENSATED.
+fn add(x: ptr<private, array<real, MAX_BALLS>>, cx: ptr<private, array<real, MAX_BALLS>>, i: u32, inc: real) {
+    if (COMPENSATED) {
+        let y = inc - (*cx)[i];
+        let t = ((*x)[i] + y) * one;
+        (*cx)[i] = (t - (*x)[i]) - y;
+        (*x)[i] = t;
+    } else {
+        (*x)[i] = (*x)[i] + inc;
+    }
+}
+
 // engine::integrate::kick — body b is pushed left by contact b, right by b−1.
 fn kick(nb: u32, hh: real) {
-    v[0] = v[0] - hh * f[0] * inv_m[0];
+    add(&v, &cv, 0u, -(hh * f[0] * inv_m[0]));
     for (var b = 1u; b < nb - 1u; b++) {
-        v[b] = v[b] + hh * (f[b - 1u] - f[b]) * inv_m[b];
+        add(&v, &cv, b, hh * (f[b - 1u] - f[b]) * inv_m[b]);
     }
-    v[nb - 1u] = v[nb - 1u] + hh * f[nb - 2u] * inv_m[nb - 1u];
+    add(&v, &cv, nb - 1u, hh * f[nb - 2u] * inv_m[nb - 1u]);
 }
 
 // engine::integrate::forces — returns whether any contact is closed.
@@ -91,18 +110,21 @@ fn integrate(i: u32) {
     let h = params[hd.input];
     let v_floor = params[hd.input + 1u];
     let max_time = params[hd.input + 2u];
-    let q = hd.input + 3u + nb;
+    one = params[hd.input + 3u];
+    let q = hd.input + 4u + nb;
     let o = hd.output;
-    let s = o + nb + nc;
+    let s = o + 2u * (nb + nc);
     for (var b = 0u; b < nb; b++) {
-        inv_m[b] = params[hd.input + 3u + b];
+        inv_m[b] = params[hd.input + 4u + b];
         v[b] = out_real[o + b];
+        cv[b] = out_real[o + nb + nc + b];
     }
     f[nb - 1u] = real(0.0);
     for (var c = 0u; c < nc; c++) {
         k[c] = params[q + c];
         inv_r[c] = params[q + nc + c];
         d[c] = out_real[o + nb + c];
+        cd[c] = out_real[o + 2u * nb + nc + c];
     }
     // Forces are a function of δ, so the state needs no forces of its own.
     var closed = forces(nc);
@@ -150,6 +172,7 @@ fn integrate(i: u32) {
                 break;
             }
             d[next] = real(0.0);
+            cd[next] = real(0.0);
             if (t_first < real(0.0)) {
                 t_first = t;
             }
@@ -165,7 +188,7 @@ fn integrate(i: u32) {
         // One velocity-Verlet step: kick, drift, forces, kick.
         kick(nb, hh);
         for (var c = 0u; c < nc; c++) {
-            d[c] = d[c] + h * (v[c] - v[c + 1u]);
+            add(&d, &cd, c, h * (v[c] - v[c + 1u]));
         }
         closed = forces(nc);
         kick(nb, hh);
@@ -197,9 +220,11 @@ fn integrate(i: u32) {
     }
     for (var b = 0u; b < nb; b++) {
         out_real[o + b] = v[b];
+        out_real[o + nb + nc + b] = cv[b];
     }
     for (var c = 0u; c < nc; c++) {
         out_real[o + nb + c] = d[c];
+        out_real[o + 2u * nb + nc + c] = cd[c];
     }
     out_real[s] = t;
     out_real[s + 1u] = t_first;

@@ -10,7 +10,7 @@ use bytemuck::{Pod, Zeroable};
 use wgpu::util::DeviceExt;
 
 use super::{Backend, Job};
-use crate::engine::integrate::{Run, CLOSING_SPEED_FLOOR};
+use crate::engine::integrate::{closing_speed_floor, Run};
 use crate::engine::real::Real;
 use crate::engine::{plan, Chain, End, Outcome, Solver};
 use crate::scene::Precision;
@@ -28,7 +28,15 @@ const DISPATCHES_PER_ROUND: usize = 4;
 pub fn shader_source(p: Precision) -> Cow<'static, str> {
     match p {
         Precision::F32 => Cow::Borrowed(SHADER),
-        Precision::F64 => Cow::Owned(SHADER.replacen("alias real = f32;", "alias real = f64;", 1)),
+        Precision::F64 => Cow::Owned(
+            SHADER
+                .replacen("alias real = f32;", "alias real = f64;", 1)
+                .replacen(
+                    "const COMPENSATED = true;",
+                    &format!("const COMPENSATED = {};", f64::COMPENSATED),
+                    1,
+                ),
+        ),
     }
 }
 
@@ -219,13 +227,15 @@ impl Gpu {
                 max_steps: lim.max_steps.min(u32::MAX as u64) as u32,
             });
             params.push(R::of(dt.unwrap_or(f64::INFINITY)));
-            params.push(R::of(CLOSING_SPEED_FLOOR) * R::epsilon() * R::of(ch.v_in()));
+            params.push(closing_speed_floor::<R>(ch.v_in()));
             params.push(R::of(lim.max_time));
+            params.push(R::one()); // `one`: keeps the compensated sums from being optimised away
             params.extend(ch.mass.iter().map(|m| R::of(1.0 / m)));
             params.extend(ch.k.iter().map(|&k| R::of(k)));
             params.extend(ch.r_min.iter().map(|r| R::of(1.0 / r)));
             state.extend(ch.v0.iter().map(|&v| R::of(v)));
             state.extend(ch.gap.iter().map(|&g| R::of(-g)));
+            state.extend(std::iter::repeat_n(R::zero(), 2 * nb - 1)); // compensations cv, cd
             state.extend([0.0, -1.0, -1.0, 0.0, 0.0].map(R::of)); // t, t_first, t_release, max_ov, max_ratio
         }
         let words0: Vec<u32> = jobs.iter().flat_map(|_| [END_RUNNING, 0]).collect();
@@ -312,7 +322,7 @@ impl Gpu {
             .enumerate()
             .map(|(i, h)| {
                 let (nb, o) = (h.nb as usize, h.output as usize);
-                let s = o + 2 * nb - 1;
+                let s = o + 2 * (2 * nb - 1);
                 let f = |j: usize| reals[o + j].to64();
                 let when = |x: f64| (x >= 0.0).then_some(x);
                 Run {
@@ -323,7 +333,7 @@ impl Gpu {
                         _ => End::NonFinite,
                     },
                     v: (0..nb).map(f).collect(),
-                    overlap: (nb..s - o).map(f).collect(),
+                    overlap: (nb..2 * nb - 1).map(f).collect(),
                     steps: words[2 * i + 1] as u64,
                     t: f(s - o),
                     t_first_contact: when(f(s - o + 1)),

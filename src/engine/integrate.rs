@@ -15,8 +15,11 @@ use super::real::Real;
 use super::Chain;
 use crate::scene::MAX_BALLS;
 
-/// Closing speeds below this many ulps of v_in count as zero (see `integrate`).
-pub const CLOSING_SPEED_FLOOR: f64 = 256.0;
+/// Closing speeds below [`Real::FLOOR_ULPS`] ulps of v_in count as zero:
+/// round-off, not an approach. Both backends start from this value.
+pub fn closing_speed_floor<R: Real>(v_in: f64) -> R {
+    R::of(R::FLOOR_ULPS) * R::epsilon() * R::of(v_in)
+}
 
 /// A velocity at or above this magnitude (m/s) counts as non-finite; the
 /// shader has no `isfinite`, so both twins use this test.
@@ -75,7 +78,11 @@ pub struct Run {
 
 struct State<R> {
     v: [R; MAX_BALLS],
+    /// Kahan compensation of `v` (f32 only).
+    cv: [R; MAX_BALLS],
     d: [R; MAX_BALLS],
+    /// Kahan compensation of `d` (f32 only).
+    cd: [R; MAX_BALLS],
     f: [R; MAX_BALLS],
     x0: f64,
 }
@@ -84,16 +91,31 @@ struct State<R> {
 fn kick<R: Real>(
     nb: usize,
     v: &mut [R; MAX_BALLS],
+    cv: &mut [R; MAX_BALLS],
     f: &[R; MAX_BALLS],
     inv_m: &[R; MAX_BALLS],
     hh: R,
 ) {
     // Body b is pushed left by contact b and right by contact b−1.
-    v[0] = v[0] - hh * f[0] * inv_m[0];
+    add(v, cv, 0, -(hh * f[0] * inv_m[0]));
     for b in 1..nb - 1 {
-        v[b] = v[b] + hh * (f[b - 1] - f[b]) * inv_m[b];
+        add(v, cv, b, hh * (f[b - 1] - f[b]) * inv_m[b]);
     }
-    v[nb - 1] = v[nb - 1] + hh * f[nb - 2] * inv_m[nb - 1];
+    add(v, cv, nb - 1, hh * f[nb - 2] * inv_m[nb - 1]);
+}
+
+/// v[b] += inc; in f32 with Kahan compensation (`cv` carries the lost low
+/// bits): thousands of kicks 1e-4 the size of v would otherwise lose ~1e-4·v.
+#[inline(always)]
+fn add<R: Real>(v: &mut [R; MAX_BALLS], cv: &mut [R; MAX_BALLS], b: usize, inc: R) {
+    if R::COMPENSATED {
+        let y = inc - cv[b];
+        let t = v[b] + y;
+        cv[b] = (t - v[b]) - y;
+        v[b] = t;
+    } else {
+        v[b] = v[b] + inc;
+    }
 }
 
 /// Forces of every contact from the overlaps; returns the largest overlap
@@ -121,6 +143,8 @@ pub fn integrate<R: Real, O: Observer>(ch: &Chain, h: f64, lim: &Limits, obs: &m
     let zero = R::zero();
     let mut s = State {
         v: [zero; MAX_BALLS],
+        cv: [zero; MAX_BALLS],
+        cd: [zero; MAX_BALLS],
         d: [zero; MAX_BALLS],
         f: [zero; MAX_BALLS],
         x0: 0.0,
@@ -141,7 +165,7 @@ pub fn integrate<R: Real, O: Observer>(ch: &Chain, h: f64, lim: &Limits, obs: &m
     // Closing speeds at round-off level are noise, not an approach: without
     // this floor two balls left at ±1e-15 m/s would "collide" a billion years
     // later and hit the time cap.
-    let v_floor = R::of(CLOSING_SPEED_FLOOR) * R::epsilon() * R::of(ch.v_in());
+    let v_floor = closing_speed_floor::<R>(ch.v_in());
     let mut t = 0.0f64;
     let mut steps = 0u64;
     let mut closed = false;
@@ -195,6 +219,7 @@ pub fn integrate<R: Real, O: Observer>(ch: &Chain, h: f64, lim: &Limits, obs: &m
                 break End::TimeCap;
             }
             s.d[next] = zero; // the onset, exactly
+            s.cd[next] = zero;
             t_first.get_or_insert(t);
         }
         if steps >= lim.max_steps {
@@ -204,15 +229,15 @@ pub fn integrate<R: Real, O: Observer>(ch: &Chain, h: f64, lim: &Limits, obs: &m
             break End::TimeCap;
         }
         // One velocity-Verlet step: kick, drift, forces, kick.
-        kick(nb, &mut s.v, &s.f, &inv_m, hh);
+        kick(nb, &mut s.v, &mut s.cv, &s.f, &inv_m, hh);
         for c in 0..nc {
-            s.d[c] = s.d[c] + hr * (s.v[c] - s.v[c + 1]);
+            add(&mut s.d, &mut s.cd, c, hr * (s.v[c] - s.v[c + 1]));
         }
         if O::ACTIVE {
             s.x0 += s.v[0].to64() * h;
         }
         closed = forces(nc, &s.d, &k, &mut s.f);
-        kick(nb, &mut s.v, &s.f, &inv_m, hh);
+        kick(nb, &mut s.v, &mut s.cv, &s.f, &inv_m, hh);
         t += h;
         steps += 1;
         if closed {

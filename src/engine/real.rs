@@ -7,12 +7,19 @@ use num_traits::Float;
 pub trait Real: Float + bytemuck::Pod + Send + Sync + std::fmt::Debug + 'static {
     /// Name as written in `--precision` and the CSV sidecar.
     const NAME: &'static str;
+    /// Whether velocity updates carry a Kahan compensation term.
+    const COMPENSATED: bool;
+    /// Closing speeds below this many ulps of v_in are round-off (f64: plain
+    /// sums, 256; f32: compensated sums keep the noise to a few ulps, 16).
+    const FLOOR_ULPS: f64;
     fn of(x: f64) -> Self;
     fn to64(self) -> f64;
 }
 
 impl Real for f64 {
     const NAME: &'static str = "f64";
+    const COMPENSATED: bool = false;
+    const FLOOR_ULPS: f64 = 256.0;
     #[inline(always)]
     fn of(x: f64) -> Self {
         x
@@ -25,6 +32,8 @@ impl Real for f64 {
 
 impl Real for f32 {
     const NAME: &'static str = "f32";
+    const COMPENSATED: bool = true;
+    const FLOOR_ULPS: f64 = 16.0;
     #[inline(always)]
     fn of(x: f64) -> Self {
         x as f32
