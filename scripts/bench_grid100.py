@@ -3,8 +3,10 @@
 hertz-cradle (CPU backend) against the numba peer, each timed in this one run,
 each with its maximum error over the grid against one reference.
 
-Reference: Richardson extrapolation of two tight cradle runs (tolerances 4e-9
-and 1e-9, steps in ratio 2; Verlet is order 2 on this grid, as measured).
+Reference: Richardson extrapolation of two tight cradle runs (tolerances
+1.6e-8 and 4e-9, steps in ratio 2; Verlet is order 2 on this grid, as measured).
+GPU rows run the WGSL shader on whatever adapter `--backend gpu` finds (here:
+Mesa lavapipe, a CPU; set XDG_RUNTIME_DIR=/tmp WGPU_BACKEND=vulkan).
 
   python3 -m venv /tmp/peer && /tmp/peer/bin/pip install numpy numba
   cargo build --release
@@ -26,9 +28,10 @@ def read(path):
 
 
 def cradle(tmp, tol, extra=()):
-    out = os.path.join(tmp, f"cradle_{tol:g}.csv")
+    out = os.path.join(tmp, f"cradle_{tol:g}{''.join(extra)}.csv")
     t0 = time.perf_counter()
-    subprocess.run([CRADLE, "sweep", GRID, "--out", out, "--backend", "cpu", "--tolerance", str(tol), *extra],
+    backend = [] if "--backend" in extra else ["--backend", "cpu"]
+    subprocess.run([CRADLE, "sweep", GRID, "--out", out, *backend, "--tolerance", str(tol), *extra],
                    check=True, stderr=subprocess.DEVNULL)
     return read(out), time.perf_counter() - t0
 
@@ -41,11 +44,12 @@ def main():
     p = argparse.ArgumentParser()
     p.add_argument("--out", required=True)
     p.add_argument("--tmp", default="/tmp/bench_grid100")
-    p.add_argument("--peer-div", type=float, nargs="*", default=[10000.0])
+    p.add_argument("--peer-div", type=float, nargs="*", default=[3000.0, 10000.0])
+    p.add_argument("--no-gpu", action="store_true")
     a = p.parse_args()
     os.makedirs(a.tmp, exist_ok=True)
-    r1, _ = cradle(a.tmp, 4e-9)
-    r2, _ = cradle(a.tmp, 1e-9)
+    r1, _ = cradle(a.tmp, 1.6e-8)
+    r2, _ = cradle(a.tmp, 4e-9)
     ref = [[b + (b - x) / 3.0 for x, b in zip(ra, rb)] for ra, rb in zip(r1, r2)]
     rows = [("reference-spread", "", max_err(r2, ref), "")]
     for div in a.peer_div:
@@ -59,6 +63,10 @@ def main():
         rows.append((f"cradle cpu f64 verlet", tol, max_err(v, ref), wall))
     v, wall = cradle(a.tmp, 1e-5, ["--precision", "f32"])
     rows.append(("cradle cpu f32 verlet", 1e-5, max_err(v, ref), wall))
+    if not a.no_gpu:
+        for prec, tol in [("f32", 1e-5), ("f64", 1e-6)]:
+            v, wall = cradle(a.tmp, tol, ["--backend", "gpu", "--precision", prec])
+            rows.append((f"cradle gpu(lavapipe) {prec} verlet", tol, max_err(v, ref), wall))
     with open(a.out, "w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(["run", "tolerance", "max_error_over_v_in", "wall_s"])

@@ -10,7 +10,7 @@ use rayon::prelude::*;
 
 use super::Sweep;
 use crate::backend::{Backend, Job};
-use crate::engine::{Chain, Overrides, Solver, Status};
+use crate::engine::{Chain, Outcome, Overrides, Solver, Status};
 use crate::error::InputError;
 use crate::output::partial::{Opened, PartialCsv};
 use crate::output::{row, sidecar};
@@ -83,7 +83,7 @@ pub fn run(sweep: &Sweep, opts: &Options, backend: &dyn Backend) -> Result<Summa
         w.write_record(sweep.header())?;
         w.flush()?;
     }
-    let mut out = match PartialCsv::open(&opts.out, &header, &fingerprint, opts.resume)? {
+    let out = match PartialCsv::open(&opts.out, &header, &fingerprint, opts.resume)? {
         Opened::AlreadyComplete => {
             return Ok(Summary {
                 already_complete: true,
@@ -107,29 +107,62 @@ pub fn run(sweep: &Sweep, opts: &Options, backend: &dyn Backend) -> Result<Summa
         indicatif::ProgressBar::hidden()
     };
     let t0 = Instant::now();
-    let (mut ok, mut done) = (0u64, 0u64);
-    let mut id = start_id;
-    while id < hi {
-        let end = (id + BATCH).min(hi);
-        let jobs: Vec<Job> = (id..end)
-            .into_par_iter()
-            .map(|i| sweep.job(i, &opts.overrides))
-            .collect::<Result<_, _>>()?;
-        let outcomes = backend.run(&jobs)?;
-        let mut bytes = Vec::with_capacity(256 * jobs.len());
-        {
-            let mut w = csv::Writer::from_writer(&mut bytes);
-            for (i, o) in (id..end).zip(&outcomes) {
-                w.write_record(row::fields(i, &sweep.axis_fields(i), o, sweep.width))?;
-                ok += (o.status == Status::Ok) as u64;
+    // The writer thread formats and appends rows while the next batch runs,
+    // so a GPU never waits for CSV writing.
+    let (ok, done, out) = std::thread::scope(|sc| -> Result<(u64, u64, PartialCsv)> {
+        let (tx, rx) = std::sync::mpsc::sync_channel::<(u64, Vec<Outcome>)>(2);
+        let bar = &bar;
+        let writer = sc.spawn(move || -> Result<(u64, u64, PartialCsv)> {
+            let mut out = out;
+            let (mut ok, mut done) = (0u64, 0u64);
+            for (first, outcomes) in rx {
+                let mut bytes = Vec::with_capacity(256 * outcomes.len());
+                {
+                    let mut w = csv::Writer::from_writer(&mut bytes);
+                    for (i, o) in (first..).zip(&outcomes) {
+                        w.write_record(row::fields(i, &sweep.axis_fields(i), o, sweep.width))?;
+                        ok += (o.status == Status::Ok) as u64;
+                    }
+                    w.flush()?;
+                }
+                out.append(&bytes)?;
+                done += outcomes.len() as u64;
+                bar.set_position(first + outcomes.len() as u64 - lo);
             }
-            w.flush()?;
+            Ok((ok, done, out))
+        });
+        let mut id = start_id;
+        let mut failed = None;
+        while id < hi {
+            let end = (id + BATCH).min(hi);
+            let batch = (id..end)
+                .into_par_iter()
+                .map(|i| sweep.job(i, &opts.overrides))
+                .collect::<Result<Vec<Job>, _>>()
+                .map_err(anyhow::Error::from)
+                .and_then(|jobs| backend.run(&jobs));
+            match batch {
+                Ok(outcomes) => {
+                    if tx.send((id, outcomes)).is_err() {
+                        break; // the writer failed; its error is reported below
+                    }
+                }
+                Err(e) => {
+                    failed = Some(e);
+                    break;
+                }
+            }
+            id = end;
         }
-        out.append(&bytes)?;
-        done += end - id;
-        bar.set_position(end - lo);
-        id = end;
-    }
+        drop(tx);
+        let written = writer
+            .join()
+            .map_err(|_| anyhow::anyhow!("the CSV writer thread panicked"))??;
+        match failed {
+            Some(e) => Err(e),
+            None => Ok(written),
+        }
+    })?;
     bar.finish_and_clear();
     let wall_s = t0.elapsed().as_secs_f64();
     let path = out.path.clone();
