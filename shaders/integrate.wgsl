@@ -6,10 +6,11 @@
 // line replaced (src/backend/gpu.rs). δ^{3/2} is written δ·√δ, never pow:
 // f64 pow returns garbage on lavapipe without any error.
 //
-// A scene may need 10^5 steps; no dispatch runs more than STEPS_PER_DISPATCH
-// loop iterations (driver watchdogs on real GPUs; llvmpipe silently ends a loop
-// after 2^16 iterations of its counter). The state lives in out_real/out_u32
-// between dispatches and the host dispatches again until no scene is running.
+// A scene may need 10^5 steps; one dispatch runs at most `budget` steps of a
+// scene (driver watchdogs on real GPUs; llvmpipe silently cuts loops short once
+// an invocation has run about 2^16 loop iterations in all, leaving garbage).
+// The state lives in out_real/out_u32 between dispatches and the host
+// dispatches again until no scene is running.
 
 alias real = f32;
 // Kahan-compensated velocity and overlap updates (Real::COMPENSATED): on for f32.
@@ -24,8 +25,6 @@ const END_NON_FINITE: u32 = 3u;
 // Still integrating: resume at the next dispatch.
 const END_RUNNING: u32 = 255u;
 
-// Loop iterations one invocation runs per dispatch.
-override STEPS_PER_DISPATCH: u32 = 1024u;
 // |x| at or above this is treated as non-finite (engine::integrate::FINITE_LIMIT).
 const FINITE_LIMIT = 1e30;
 
@@ -34,12 +33,19 @@ struct Header {
     // number of bodies
     nb: u32,
     // offset of this scene's parameters in `params`:
-    // h, v_floor, max_time, one (= 1.0), inv_m[nb], k[nc], inv_r[nc]
+    // h, v_floor, max_time, one (= 1.0), h_min, t_scale, weights[n_weights], inv_m[nb], k[nc], inv_r[nc]
     input: u32,
     // offset of its state (the results once it ends) in `out_real`: v[nb], d[nc],
     // cv[nb], cd[nc], t, t_first (−1: none), t_release (−1: none), max_overlap, max_ratio
     output: u32,
     max_steps: u32,
+    // number of Verlet substeps per step (their weights follow h_min in `params`)
+    n_weights: u32,
+    // grading exponent in quarters (graded_step); 0: steps are not graded
+    quarters: u32,
+    // steps per dispatch, so that one dispatch stays under ~60,000 loop iterations
+    budget: u32,
+    pad: u32,
 }
 
 @group(0) @binding(0) var<storage, read> headers: array<Header>;
@@ -99,6 +105,40 @@ fn forces(nc: u32) -> bool {
     return closed;
 }
 
+// engine::integrate::graded_step — small steps near contact kinks: h·(T/tc)^(q/4)
+// at time distance T from a kink, at most T/2 before it and 2T after it, never
+// below h_min, landing on a kink ahead.
+fn graded_step(nc: u32, h: real, h_min: real, tc: real, quarters: u32) -> real {
+    var s = h;
+    for (var c = 0u; c < nc; c++) {
+        let r = v[c] - v[c + 1u];
+        let dc = d[c];
+        let ar = abs(r);
+        if (ar <= real(0.0)) {
+            continue;
+        }
+        let tk = abs(dc) / ar;
+        if (tk >= tc || tk >= s + s) {
+            continue; // no restriction from this contact
+        }
+        let ahead = (dc < real(0.0) && r > real(0.0)) || (dc > real(0.0) && r < real(0.0));
+        let q = sqrt(sqrt(tk / tc));
+        var g = real(1.0);
+        for (var j = 0u; j < quarters; j++) {
+            g = g * q;
+        }
+        // Halve the distance to a kink ahead, at most double the distance from
+        // one behind: no substep reaches across a kink until the step is h_min.
+        var cap = tk + tk;
+        if (ahead) {
+            cap = tk * real(0.5);
+        }
+        let sc = max(min(h * g, cap), h_min);
+        s = min(s, sc);
+    }
+    return s;
+}
+
 // engine::integrate::integrate
 fn integrate(i: u32) {
     if (out_u32[2u * i] != END_RUNNING) {
@@ -111,11 +151,15 @@ fn integrate(i: u32) {
     let v_floor = params[hd.input + 1u];
     let max_time = params[hd.input + 2u];
     one = params[hd.input + 3u];
-    let q = hd.input + 4u + nb;
+    let h_min = params[hd.input + 4u];
+    let t_scale = params[hd.input + 5u];
+    let w0 = hd.input + 6u; // substep weights
+    let m0 = w0 + hd.n_weights; // inv_m
+    let q = m0 + nb;
     let o = hd.output;
     let s = o + 2u * (nb + nc);
     for (var b = 0u; b < nb; b++) {
-        inv_m[b] = params[hd.input + 4u + b];
+        inv_m[b] = params[m0 + b];
         v[b] = out_real[o + b];
         cv[b] = out_real[o + nb + nc + b];
     }
@@ -128,7 +172,6 @@ fn integrate(i: u32) {
     }
     // Forces are a function of δ, so the state needs no forces of its own.
     var closed = forces(nc);
-    let hh = h * real(0.5);
     var t = out_real[s];
     var t_first = out_real[s + 1u];
     var t_release = out_real[s + 2u];
@@ -136,7 +179,7 @@ fn integrate(i: u32) {
     var max_ratio = out_real[s + 4u];
     var steps = out_u32[2u * i + 1u];
     var end = END_RUNNING;
-    for (var budget = 0u; budget < STEPS_PER_DISPATCH; budget++) {
+    for (var it = 0u; it < hd.budget; it++) {
         if (!closed) {
             // Free flight: jump to the next onset, if any.
             var found = false;
@@ -185,14 +228,22 @@ fn integrate(i: u32) {
             end = END_TIME_CAP;
             break;
         }
-        // One velocity-Verlet step: kick, drift, forces, kick.
-        kick(nb, hh);
-        for (var c = 0u; c < nc; c++) {
-            add(&d, &cd, c, h * (v[c] - v[c + 1u]));
+        // One step: velocity-Verlet substeps (kick, drift, forces, kick).
+        var step = h;
+        if (hd.quarters > 0u) {
+            step = graded_step(nc, h, h_min, t_scale, hd.quarters);
         }
-        closed = forces(nc);
-        kick(nb, hh);
-        t = t + h;
+        for (var wi = 0u; wi < hd.n_weights; wi++) {
+            let ws = params[w0 + wi] * step;
+            let hh = ws * real(0.5);
+            kick(nb, hh);
+            for (var c = 0u; c < nc; c++) {
+                add(&d, &cd, c, ws * (v[c] - v[c + 1u]));
+            }
+            closed = forces(nc);
+            kick(nb, hh);
+        }
+        t = t + step;
         steps += 1u;
         if (closed) {
             for (var c = 0u; c < nc; c++) {
@@ -203,9 +254,9 @@ fn integrate(i: u32) {
             // Every contact just opened: locate each release inside the step.
             for (var c = 0u; c < nc; c++) {
                 let d1 = d[c];
-                let d0 = d1 - h * (v[c] - v[c + 1u]);
+                let d0 = d1 - step * (v[c] - v[c + 1u]);
                 if (d0 > real(0.0) && d1 <= real(0.0)) {
-                    t_release = max(t_release, t - h + h * d0 / (d0 - d1));
+                    t_release = max(t_release, t - step + step * d0 / (d0 - d1));
                 }
             }
         }

@@ -115,7 +115,7 @@ pub struct SolverFlags {
     /// Target error of outcome velocities relative to v_in [default: 1e-6 (f64), 1e-5 (f32)].
     #[arg(long)]
     pub tolerance: Option<f64>,
-    /// Integration method [default: verlet].
+    /// Integration method: verlet (order 2), suzuki4, yoshida4 (order 4), yoshida6 (order 6) [default: suzuki4].
     #[arg(long)]
     pub method: Option<String>,
 }

@@ -9,7 +9,7 @@ use hertz_cradle::backend::cpu::Cpu;
 use hertz_cradle::backend::gpu::{find_adapter, shader_source, Gpu, Want};
 use hertz_cradle::backend::{Backend, Job};
 use hertz_cradle::engine::{Chain, Outcome, Overrides, Solver, Status};
-use hertz_cradle::scene::{Precision, Scene};
+use hertz_cradle::scene::{Method, Precision, Scene};
 
 fn gpu() -> Option<&'static Gpu> {
     static GPU: OnceLock<Option<Gpu>> = OnceLock::new();
@@ -27,11 +27,20 @@ fn gpu() -> Option<&'static Gpu> {
 }
 
 fn job(text: &str, precision: Precision, tolerance: Option<f64>) -> Job {
+    job_with(text, precision, tolerance, None)
+}
+
+fn job_with(
+    text: &str,
+    precision: Precision,
+    tolerance: Option<f64>,
+    method: Option<Method>,
+) -> Job {
     let s = Scene::from_toml_str("test", text).unwrap_or_else(|e| panic!("{e}\n{text}"));
     let o = Overrides {
         precision: Some(precision),
         tolerance,
-        ..Default::default()
+        method,
     };
     Job::Run {
         chain: Chain::from_scene(&s).unwrap(),
@@ -89,7 +98,7 @@ fn batch(precision: Precision) -> Vec<Job> {
             }
             let glue: String = glue.iter().map(|&g| if g { '=' } else { '-' }).collect();
             let v: Vec<String> = v.iter().map(|x| x.to_string()).collect();
-            job(
+            job_with(
                 &format!(
                     "balls = {n}\nmass = [{}]\ngap = [{}]\nglue = \"{glue}\"\nvelocity = [{}]",
                     mass.join(","),
@@ -98,6 +107,7 @@ fn batch(precision: Precision) -> Vec<Job> {
                 ),
                 precision,
                 Some(1e-4),
+                Some(Method::ALL[(rnd() * Method::ALL.len() as f64) as usize]), // every method
             )
         })
         .collect()
@@ -106,7 +116,7 @@ fn batch(precision: Precision) -> Vec<Job> {
 fn max_diff(jobs: &[Job], a: &[Outcome], b: &[Outcome]) -> f64 {
     let mut worst: f64 = 0.0;
     for ((j, x), y) in jobs.iter().zip(a).zip(b) {
-        assert_eq!(x.status, y.status);
+        assert_eq!(x.status, y.status, "{j:?}\ncpu {x:?}\ngpu {y:?}");
         for (p, q) in x.v.iter().zip(&y.v) {
             worst = worst.max((p - q).abs() / v_in(j));
         }
@@ -118,11 +128,16 @@ fn max_diff(jobs: &[Job], a: &[Outcome], b: &[Outcome]) -> f64 {
 
 fn known_results(b: &dyn Backend) {
     let jobs = [
-        job("balls = 2\nvelocity = [1.0, 0.0]", Precision::F64, None),
+        // exact results, checked to 1e-9 at a tight tolerance
+        job(
+            "balls = 2\nvelocity = [1.0, 0.0]",
+            Precision::F64,
+            Some(1e-10),
+        ),
         job(
             "balls = 3\nglue = \"=-\"\nvelocity = [2.0, 2.0, 0.0]",
             Precision::F64,
-            None,
+            Some(1e-10),
         ),
         job(
             "balls = 5\nvelocity = [1.0, 0, 0, 0, 0]",
@@ -132,7 +147,7 @@ fn known_results(b: &dyn Backend) {
         job(
             "balls = 5\ngap = 1e-4\nvelocity = [1.0, 0, 0, 0, 0]",
             Precision::F64,
-            None,
+            Some(1e-10),
         ),
         job(
             "balls = 5\nvelocity = [1.0, 0, 0, 0, 0]",

@@ -12,7 +12,7 @@ use wgpu::util::DeviceExt;
 use super::{Backend, Job};
 use crate::engine::integrate::{closing_speed_floor, Run};
 use crate::engine::real::Real;
-use crate::engine::{plan, Chain, End, Outcome, Solver};
+use crate::engine::{plan, Chain, End, Outcome, Solver, UNSTEPPED};
 use crate::scene::Precision;
 
 /// The shader source, f32 flavour; the f64 flavour swaps the `real` alias.
@@ -48,8 +48,39 @@ pub struct GpuHeader {
     pub input: u32,
     pub output: u32,
     pub max_steps: u32,
+    pub n_weights: u32,
+    /// Grading exponent in quarters; 0: not graded.
+    pub quarters: u32,
+    /// Steps one dispatch may run for this scene.
+    pub budget: u32,
+    pub pad: u32,
 }
-const _: () = assert!(std::mem::size_of::<GpuHeader>() == 16);
+const _: () = assert!(std::mem::size_of::<GpuHeader>() == 32);
+
+/// Loop iterations of one step of a chain of `nb` bodies in `n_weights` substeps.
+fn loops_per_step(nb: usize, n_weights: usize) -> usize {
+    let nc = nb - 1;
+    n_weights * (2 * nb + 2 * nc) + 2 * nc + nb + 8
+}
+
+/// Steps per dispatch, the same for every scene of a dispatch: llvmpipe runs
+/// the invocations of a SIMD vector in lock step and silently cuts loops short
+/// once the vector has run about 2^16 loop iterations (measured: 1,986 Verlet
+/// steps of a 5-ball chain), so the costliest scene of the batch sets it, with
+/// a margin of 2 (real GPUs have watchdogs instead). At most 4096 steps.
+pub fn dispatch_budget(jobs: &[(&Chain, &Solver)]) -> u32 {
+    let worst = jobs
+        .iter()
+        .map(|(ch, s)| {
+            loops_per_step(
+                ch.n_bodies(),
+                crate::engine::solver::weights(s.method).len(),
+            )
+        })
+        .max()
+        .unwrap_or(1);
+    (30_000 / worst).clamp(1, 4096) as u32
+}
 
 /// Which adapters a backend may use.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -214,22 +245,31 @@ impl Gpu {
         jobs: &[(&Chain, &Solver)],
     ) -> Result<Vec<Run>> {
         let mut headers = Vec::with_capacity(jobs.len());
+        let budget = dispatch_budget(jobs);
         let mut params: Vec<R> = Vec::new();
         // The state each scene starts from, exactly as the CPU integrator does.
         let mut state: Vec<R> = Vec::new();
         for (ch, solver) in jobs {
-            let (dt, lim) = plan(ch, solver);
+            let (sp, lim) = plan(ch, solver);
+            let sp = sp.unwrap_or(UNSTEPPED);
             let nb = ch.n_bodies();
             headers.push(GpuHeader {
                 nb: nb as u32,
                 input: params.len() as u32,
                 output: state.len() as u32,
                 max_steps: lim.max_steps.min(u32::MAX as u64) as u32,
+                n_weights: sp.weights.len() as u32,
+                quarters: if sp.graded { sp.grade_quarters } else { 0 },
+                budget,
+                pad: 0,
             });
-            params.push(R::of(dt.unwrap_or(f64::INFINITY)));
+            params.push(R::of(sp.h));
             params.push(closing_speed_floor::<R>(ch.v_in()));
             params.push(R::of(lim.max_time));
             params.push(R::one()); // `one`: keeps the compensated sums from being optimised away
+            params.push(R::of(sp.h_min));
+            params.push(R::of(sp.t_scale));
+            params.extend(sp.weights.iter().map(|&w| R::of(w)));
             params.extend(ch.mass.iter().map(|m| R::of(1.0 / m)));
             params.extend(ch.k.iter().map(|&k| R::of(k)));
             params.extend(ch.r_min.iter().map(|r| R::of(1.0 / r)));
@@ -289,7 +329,7 @@ impl Gpu {
         });
         let groups = (jobs.len() as u32).div_ceil(WORKGROUP);
         // Dispatch rounds until no scene is still running; each round is a few
-        // dispatches of STEPS_PER_DISPATCH iterations, then a look at the ends.
+        // dispatches of at most `budget` steps per scene, then a look at the ends.
         let words = loop {
             let mut enc = d.create_command_encoder(&wgpu::CommandEncoderDescriptor {
                 label: Some("integrate"),
@@ -399,8 +439,8 @@ impl Backend for Gpu {
                 Precision::F64 => self.runs::<f64>(&batch)?,
             };
             for ((i, (ch, solver)), run) in idx.into_iter().zip(batch).zip(runs) {
-                let (dt, _) = plan(ch, solver);
-                out[i] = Some(Outcome::from_run(ch, &run, dt.unwrap_or(f64::NAN)));
+                let h = plan(ch, solver).0.map_or(f64::NAN, |sp| sp.h);
+                out[i] = Some(Outcome::from_run(ch, &run, h));
             }
         }
         Ok(out

@@ -9,7 +9,7 @@ pub mod real;
 pub mod solver;
 
 pub use chain::Chain;
-pub use integrate::{integrate, End, Limits, Observer, Run, Silent};
+pub use integrate::{integrate, End, Limits, Observer, Run, Silent, StepPlan};
 pub use outcome::{Outcome, Status, MAX_OVERLAP_RATIO};
 pub use solver::{Overrides, Solver, StepRule};
 
@@ -17,22 +17,32 @@ use crate::scene::Precision;
 
 /// The step (`None`: nothing can collide) and caps of one run; both backends
 /// start from exactly these.
-pub fn plan(chain: &Chain, solver: &Solver) -> (Option<f64>, Limits) {
+pub fn plan(chain: &Chain, solver: &Solver) -> (Option<StepPlan>, Limits) {
     let lim = Limits {
         max_steps: solver.max_steps,
         max_time: solver.max_time,
     };
-    (solver.dt(chain), lim)
+    (solver.step_plan(chain), lim)
 }
+
+/// The plan of a chain where nothing can collide: it settles before any step.
+pub const UNSTEPPED: StepPlan = StepPlan {
+    h: f64::INFINITY,
+    weights: &[1.0],
+    graded: false,
+    h_min: f64::INFINITY,
+    grade_quarters: 0,
+    t_scale: f64::INFINITY,
+};
 
 /// Simulate one compiled chain with `solver`, reporting states to `obs`.
 pub fn simulate_chain<O: Observer>(chain: &Chain, solver: &Solver, obs: &mut O) -> Outcome {
-    let (dt, lim) = plan(chain, solver);
+    let (sp, lim) = plan(chain, solver);
     // A chain where nothing can collide still runs: the integrator sees it settled.
-    let h = dt.unwrap_or(f64::INFINITY);
+    let sp = sp.unwrap_or(UNSTEPPED);
     let run = match solver.precision {
-        Precision::F64 => integrate::<f64, O>(chain, h, &lim, obs),
-        Precision::F32 => integrate::<f32, O>(chain, h, &lim, obs),
+        Precision::F64 => integrate::<f64, O>(chain, &sp, &lim, obs),
+        Precision::F32 => integrate::<f32, O>(chain, &sp, &lim, obs),
     };
-    Outcome::from_run(chain, &run, dt.unwrap_or(f64::NAN))
+    Outcome::from_run(chain, &run, if sp.h.is_finite() { sp.h } else { f64::NAN })
 }

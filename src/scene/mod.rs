@@ -31,13 +31,36 @@ pub const MAX_BALLS: usize = 64;
 pub enum Method {
     /// Velocity Verlet (kick-drift-kick), order 2, symplectic.
     Verlet,
+    /// Yoshida's triple jump: 3 Verlet substeps, order 4, graded near contact kinks.
+    Yoshida4,
+    /// Suzuki's fractal: 5 Verlet substeps, order 4 with a smaller error
+    /// constant, graded near contact kinks.
+    Suzuki4,
+    /// Yoshida's 7-substep composition (solution A), order 6, graded near kinks.
+    Yoshida6,
 }
 
 impl Method {
-    pub const ALL: [Method; 1] = [Method::Verlet];
+    pub const ALL: [Method; 4] = [
+        Method::Verlet,
+        Method::Yoshida4,
+        Method::Suzuki4,
+        Method::Yoshida6,
+    ];
     pub fn name(self) -> &'static str {
         match self {
             Method::Verlet => "verlet",
+            Method::Yoshida4 => "yoshida4",
+            Method::Suzuki4 => "suzuki4",
+            Method::Yoshida6 => "yoshida6",
+        }
+    }
+    /// Order of convergence (kept across contact kinks by step grading).
+    pub fn order(self) -> u32 {
+        match self {
+            Method::Verlet => 2,
+            Method::Yoshida4 | Method::Suzuki4 => 4,
+            Method::Yoshida6 => 6,
         }
     }
     pub fn parse(s: &str) -> Option<Method> {
