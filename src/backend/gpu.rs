@@ -264,7 +264,7 @@ impl Gpu {
                 pad: 0,
             });
             params.push(R::of(sp.h));
-            params.push(closing_speed_floor::<R>(ch.v_in()));
+            params.push(closing_speed_floor::<R>(ch.v_in(), sp.settle_rel));
             params.push(R::of(lim.max_time));
             params.push(R::one()); // `one`: keeps the compensated sums from being optimised away
             params.push(R::of(sp.h_min));

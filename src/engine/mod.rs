@@ -33,6 +33,7 @@ pub const UNSTEPPED: StepPlan = StepPlan {
     h_min: f64::INFINITY,
     grade_quarters: 0,
     t_scale: f64::INFINITY,
+    settle_rel: 0.0,
 };
 
 /// Simulate one compiled chain with `solver`, reporting states to `obs`.

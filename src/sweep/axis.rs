@@ -186,10 +186,7 @@ pub fn apply(spec: &mut SceneSpec, base: &Scene, p: &Param, value: &Value) {
             &vec![crate::scene::DEFAULT_DENSITY; base.n],
         ),
         "mass" => {
-            if spec.mass.is_none() {
-                spec.mass = Some(PerBall::List(base.mass.clone()));
-                spec.density = None;
-            }
+            spec.density = None;
             set(&mut spec.mass, p.index, num, n, &base.mass)
         }
         "young_modulus" => set(
@@ -265,9 +262,13 @@ pub fn apply(spec: &mut SceneSpec, base: &Scene, p: &Param, value: &Value) {
 }
 
 /// Set a per-ball quantity; a quantity the scene did not write starts from
-/// the base scene's resolved values (`fallback`).
+/// the base scene's resolved values (`fallback`) — one value for every ball
+/// when they are all equal, so that a `balls` axis can change N.
 fn set(slot: &mut Option<PerBall>, index: Option<usize>, value: f64, n: usize, fallback: &[f64]) {
-    let pb = slot.get_or_insert_with(|| PerBall::List(fallback.to_vec()));
+    let pb = slot.get_or_insert_with(|| match fallback.first() {
+        Some(&x) if fallback.iter().all(|&y| y == x) => PerBall::Scalar(x),
+        _ => PerBall::List(fallback.to_vec()),
+    });
     pb.set(index, value, n);
 }
 
