@@ -3,6 +3,8 @@
 //! reason when no adapter exists, unless CRADLE_REQUIRE_GPU=1 (CI sets it, with
 //! Mesa's lavapipe installed, so the WGSL shader really runs there).
 
+mod common;
+
 use std::sync::OnceLock;
 
 use hertz_cradle::backend::cpu::Cpu;
@@ -58,14 +60,8 @@ fn v_in(j: &Job) -> f64 {
 /// A fixed batch of 1200 varied scenes: chain lengths 2–9, masses 0.2–5 m,
 /// gaps 0 or up to 20 µm, glue patterns, 1–3 balls launched or random speeds.
 fn batch(precision: Precision) -> Vec<Job> {
-    let mut seed = 0x2545_f491_4f6c_dd1du64;
-    let mut rnd = move || {
-        seed ^= seed << 13;
-        seed ^= seed >> 7;
-        seed ^= seed << 17;
-        (seed >> 11) as f64 / (1u64 << 53) as f64
-    };
-    let m = 7850.0 * 4.0 / 3.0 * std::f64::consts::PI * 0.0125f64.powi(3);
+    let mut rnd = common::uniform(0x2545_f491_4f6c_dd1d);
+    let m = common::STEEL_MASS;
     (0..1200)
         .map(|_| {
             let n = 2 + (rnd() * 8.0) as usize;

@@ -51,8 +51,10 @@ fn err(o: &Outcome, want: &[f64], v_in: f64) -> f64 {
         .fold(0.0, f64::max)
 }
 
+mod common;
+
 fn steel_mass() -> f64 {
-    7850.0 * 4.0 / 3.0 * std::f64::consts::PI * 0.0125f64.powi(3)
+    common::STEEL_MASS
 }
 
 #[test]

@@ -11,7 +11,8 @@ use hertz_cradle::engine::{simulate_chain, Chain, Outcome, Overrides, Silent, So
 use hertz_cradle::scene::{Precision, Scene};
 use proptest::prelude::*;
 
-const STEEL_M: f64 = 7850.0 * 4.0 / 3.0 * std::f64::consts::PI * 0.0125 * 0.0125 * 0.0125;
+mod common;
+use common::STEEL_MASS as STEEL_M;
 
 fn scene(text: &str) -> Scene {
     Scene::from_toml_str("stress", text).unwrap_or_else(|e| panic!("{e}\n{text}"))
@@ -31,13 +32,7 @@ fn job(s: &Scene, precision: Precision, tolerance: f64) -> Job {
 
 /// A deterministic sample of the envelope, each scene with its region label.
 fn envelope() -> Vec<(String, Scene)> {
-    let mut seed = 0x9e37_79b9_7f4a_7c15u64;
-    let mut rnd = move || {
-        seed ^= seed << 13;
-        seed ^= seed >> 7;
-        seed ^= seed << 17;
-        (seed >> 11) as f64 / (1u64 << 53) as f64
-    };
+    let mut rnd = common::uniform(0x9e37_79b9_7f4a_7c15);
     let log = |r: f64, a: f64, b: f64| (a.ln() + r * (b.ln() - a.ln())).exp();
     let mut out = Vec::new();
     for i in 0..240 {

@@ -128,6 +128,8 @@ pub struct Gpu {
     pipe_f64: Option<wgpu::ComputePipeline>,
     info: wgpu::AdapterInfo,
     max_workgroups: u32,
+    /// Largest storage buffer binding (bytes).
+    max_binding: u64,
 }
 
 impl Gpu {
@@ -204,6 +206,7 @@ impl Gpu {
             None
         };
         let max_workgroups = device.limits().max_compute_workgroups_per_dimension;
+        let max_binding = device.limits().max_storage_buffer_binding_size;
         Ok(Gpu {
             device,
             queue,
@@ -212,6 +215,7 @@ impl Gpu {
             pipe_f64,
             info,
             max_workgroups,
+            max_binding,
         })
     }
 
@@ -231,10 +235,29 @@ impl Gpu {
                 anyhow!("{} has no 64-bit float support (SHADER_F64): use --precision f32 or --backend cpu", self.info.name)
             })?,
         };
+        // Parts small enough for the adapter: workgroups per dimension, and
+        // the largest storage binding (params and state grow with N).
+        let max_scenes = (self.max_workgroups as usize) * WORKGROUP as usize;
+        let real = std::mem::size_of::<R>() as u64;
+        let bytes = |(ch, s): &(&Chain, &Solver)| {
+            let nb = ch.n_bodies() as u64;
+            let n_w = crate::engine::solver::weights(s.method).len() as u64;
+            ((6 + n_w + 3 * nb) * real).max((4 * nb + 3) * real)
+        };
         let mut out = Vec::with_capacity(jobs.len());
-        let per_dispatch = (self.max_workgroups as usize) * WORKGROUP as usize;
-        for part in jobs.chunks(per_dispatch) {
-            out.extend(self.dispatch::<R>(pipe, part)?);
+        let mut start = 0;
+        while start < jobs.len() {
+            let (mut end, mut size) = (start, 0u64);
+            while end < jobs.len()
+                && end - start < max_scenes
+                && size + bytes(&jobs[end]) <= self.max_binding
+            {
+                size += bytes(&jobs[end]);
+                end += 1;
+            }
+            let end = end.max(start + 1);
+            out.extend(self.dispatch::<R>(pipe, &jobs[start..end])?);
+            start = end;
         }
         Ok(out)
     }
