@@ -64,6 +64,10 @@ pub enum Command {
         /// Worker threads for the CPU backend [default: all cores].
         #[arg(long)]
         threads: Option<usize>,
+        /// Fill the `error_estimate` column: every scene runs a second time with
+        /// steps twice as long (Richardson); costs about 60% more.
+        #[arg(long)]
+        error_estimate: bool,
         #[command(flatten)]
         solver: SolverFlags,
     },

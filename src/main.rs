@@ -91,6 +91,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             resume,
             shard,
             threads,
+            error_estimate,
             solver,
         } => {
             let overrides = solver.overrides()?;
@@ -123,6 +124,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 shard,
                 overrides,
                 command: std::env::args().collect(),
+                error_estimate,
             };
             let s = hertz_cradle::sweep::run::run(&spec, &opts, backend)?;
             if s.already_complete {

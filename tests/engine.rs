@@ -376,3 +376,40 @@ fn high_order_methods_converge_fast_across_contact_kinks() {
         );
     }
 }
+
+#[test]
+fn error_estimate_tracks_the_actual_error_for_verlet() {
+    use hertz_cradle::backend::{cpu::Cpu, run_with_estimate, Job};
+    // Verlet is cleanly order 2 on these scenes, where Richardson is valid.
+    for s in method_scenes() {
+        let reference = solve_with(
+            &s,
+            Some(StepRule::Tolerance(1e-11)),
+            Precision::F64,
+            Some(Method::Suzuki4),
+        )
+        .v;
+        let o = Overrides {
+            method: Some(Method::Verlet),
+            tolerance: Some(1e-5),
+            ..Default::default()
+        };
+        let job = Job::Run {
+            chain: Chain::from_scene(&s).unwrap(),
+            solver: Solver::resolve(&s, &o).unwrap(),
+        };
+        let plain = run_with_estimate(&Cpu, std::slice::from_ref(&job), false).unwrap();
+        assert!(plain[0].error_estimate.is_nan(), "no estimate unless asked");
+        let out = run_with_estimate(&Cpu, &[job], true).unwrap();
+        let actual = max_diff(&out[0].v, &reference) / s.v_in();
+        let est = out[0].error_estimate;
+        assert_eq!(
+            out[0].v, plain[0].v,
+            "the estimate does not change the outcome"
+        );
+        assert!(
+            est > actual / 2.0 && est < actual * 2.0,
+            "estimate {est:e} vs actual {actual:e}"
+        );
+    }
+}

@@ -4,7 +4,7 @@
 pub mod cpu;
 pub mod gpu;
 
-use crate::engine::{Chain, Outcome, Solver};
+use crate::engine::{Chain, Outcome, Solver, Status};
 
 /// One scene ready to integrate, or a combination of sweep values that did
 /// not make a valid scene (its row gets status `invalid`).
@@ -21,4 +21,34 @@ pub trait Backend: Sync {
     fn adapter(&self) -> String;
     /// Outcomes of `jobs`, in the same order.
     fn run(&self, jobs: &[Job]) -> anyhow::Result<Vec<Outcome>>;
+}
+
+/// Run `jobs`; with `estimate`, also their coarse twins (every step twice as
+/// long) and fill each `ok` outcome's `error_estimate` by Richardson.
+pub fn run_with_estimate(
+    backend: &dyn Backend,
+    jobs: &[Job],
+    estimate: bool,
+) -> anyhow::Result<Vec<Outcome>> {
+    if !estimate {
+        return backend.run(jobs);
+    }
+    let mut all = jobs.to_vec();
+    all.extend(jobs.iter().map(|j| match j {
+        Job::Run { chain, solver } => Job::Run {
+            chain: chain.clone(),
+            solver: solver.coarse(),
+        },
+        other => other.clone(),
+    }));
+    let mut out = backend.run(&all)?;
+    let coarse = out.split_off(jobs.len());
+    for ((o, c), j) in out.iter_mut().zip(&coarse).zip(jobs) {
+        if let Job::Run { chain, solver } = j {
+            if o.status == Status::Ok && c.status == Status::Ok {
+                o.error_estimate = solver.error_estimate(&o.v, &c.v, chain.v_in());
+            }
+        }
+    }
+    Ok(out)
 }

@@ -69,6 +69,8 @@ pub struct Outcome {
     pub t_release: f64,
     /// Step used (s); NaN when nothing could collide.
     pub dt: f64,
+    /// Estimated error of `v` relative to v_in (`--error-estimate`); NaN when not asked.
+    pub error_estimate: f64,
 }
 
 impl Outcome {
@@ -116,6 +118,7 @@ impl Outcome {
             t_contact: run.t_first_contact.unwrap_or(f64::NAN),
             t_release: run.t_last_release.unwrap_or(f64::NAN),
             dt,
+            error_estimate: f64::NAN,
         }
     }
 
@@ -133,6 +136,7 @@ impl Outcome {
             t_contact: f64::NAN,
             t_release: f64::NAN,
             dt: f64::NAN,
+            error_estimate: f64::NAN,
         }
     }
 }

@@ -98,6 +98,8 @@ pub struct Solver {
     pub step: StepRule,
     pub max_steps: u64,
     pub max_time: f64,
+    /// Multiplies every step (1; 2 for the coarse run of an error estimate).
+    pub step_factor: f64,
 }
 
 impl Solver {
@@ -132,20 +134,45 @@ impl Solver {
             step,
             max_steps: scene.max_steps.unwrap_or(DEFAULT_MAX_STEPS),
             max_time: scene.duration.unwrap_or(DEFAULT_MAX_TIME),
+            step_factor: 1.0,
         })
     }
 
     /// The step (s) for this chain; `None` when nothing can collide.
     pub fn dt(&self, chain: &Chain) -> Option<f64> {
         let tc = chain.time_scale()?;
-        Some(match self.step {
-            StepRule::Dt(dt) => dt,
-            StepRule::Tolerance(tol) => {
-                let (c, q) = error_model(self.method);
-                let per_contact = (c / tol).powf(1.0 / q);
-                tc / per_contact.max(MIN_STEPS_PER_CONTACT)
-            }
-        })
+        Some(
+            self.step_factor
+                * match self.step {
+                    StepRule::Dt(dt) => dt,
+                    StepRule::Tolerance(tol) => {
+                        let (c, q) = error_model(self.method);
+                        let per_contact = (c / tol).powf(1.0 / q);
+                        tc / per_contact.max(MIN_STEPS_PER_CONTACT)
+                    }
+                },
+        )
+    }
+
+    /// The same solver with every step twice as long: the coarse run of a
+    /// per-scene error estimate.
+    pub fn coarse(&self) -> Solver {
+        Solver {
+            step_factor: 2.0 * self.step_factor,
+            ..self.clone()
+        }
+    }
+
+    /// Error estimate of a run from its coarse twin (Richardson): the
+    /// difference of the outcome velocities over 2^q − 1, relative to v_in.
+    pub fn error_estimate(&self, fine: &[f64], coarse: &[f64], v_in: f64) -> f64 {
+        let q = error_model(self.method).1;
+        let d = fine
+            .iter()
+            .zip(coarse)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max);
+        d / ((2f64.powf(q) - 1.0) * v_in)
     }
 
     /// How this chain is stepped; `None` when nothing can collide.

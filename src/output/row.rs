@@ -1,7 +1,8 @@
 //! One outcome row, the same for `cradle run --format csv` and every sweep row
 //! (SPEC §4): `id`, one column per axis, `status`, `v_0`..`v_{N−1}`,
 //! `ejected`, `energy_error`, `momentum_error`, `max_overlap_m`, `steps`,
-//! then `t_contact`, `t_release`, `dt` (s).
+//! then `t_contact`, `t_release`, `dt` (s), `error_estimate` (relative to v_in,
+//! with `--error-estimate`; empty otherwise).
 
 use crate::engine::Outcome;
 
@@ -20,6 +21,7 @@ pub fn header(axes: &[String], width: usize) -> Vec<String> {
         "t_contact",
         "t_release",
         "dt",
+        "error_estimate",
     ] {
         h.push(c.into());
     }
@@ -49,7 +51,7 @@ pub fn fields(id: u64, axis_values: &[String], o: &Outcome, width: usize) -> Vec
         r.push(num(x));
     }
     r.push(o.steps.to_string());
-    for x in [o.t_contact, o.t_release, o.dt] {
+    for x in [o.t_contact, o.t_release, o.dt, o.error_estimate] {
         r.push(num(x));
     }
     r

@@ -9,7 +9,7 @@ use anyhow::Result;
 use rayon::prelude::*;
 
 use super::Sweep;
-use crate::backend::{Backend, Job};
+use crate::backend::{run_with_estimate, Backend, Job};
 use crate::engine::{Chain, Outcome, Overrides, Solver, Status};
 use crate::error::InputError;
 use crate::output::partial::{Opened, PartialCsv};
@@ -25,6 +25,8 @@ pub struct Options {
     pub shard: Option<(u64, u64)>,
     pub overrides: Overrides,
     pub command: Vec<String>,
+    /// Add a per-scene error estimate (a second, coarse run of every scene).
+    pub error_estimate: bool,
 }
 
 #[derive(Debug, Default)]
@@ -73,6 +75,7 @@ pub fn run(sweep: &Sweep, opts: &Options, backend: &dyn Backend) -> Result<Summa
     // Everything a resumed run must share with the first, in one string.
     let fingerprint = serde_json::to_string(&serde_json::json!({
         "sweep": sweep, "shard": opts.shard, "overrides": format!("{:?}", opts.overrides),
+        "error_estimate": opts.error_estimate,
         "precision_default": "f64", "version": env!("CARGO_PKG_VERSION"),
     }))?;
     // Fail on a bad solver choice (e.g. f32 below its floor) before any output.
@@ -140,7 +143,7 @@ pub fn run(sweep: &Sweep, opts: &Options, backend: &dyn Backend) -> Result<Summa
                 .map(|i| sweep.job(i, &opts.overrides))
                 .collect::<Result<Vec<Job>, _>>()
                 .map_err(anyhow::Error::from)
-                .and_then(|jobs| backend.run(&jobs));
+                .and_then(|jobs| run_with_estimate(backend, &jobs, opts.error_estimate));
             match batch {
                 Ok(outcomes) => {
                     if tx.send((id, outcomes)).is_err() {
