@@ -296,6 +296,17 @@ fn method_scenes() -> Vec<Scene> {
     ]
 }
 
+/// Outcome velocities of a tight suzuki4 run, the reference of the method tests.
+fn reference(s: &Scene, tolerance: f64) -> Vec<f64> {
+    solve_with(
+        s,
+        Some(StepRule::Tolerance(tolerance)),
+        Precision::F64,
+        Some(Method::Suzuki4),
+    )
+    .v
+}
+
 fn max_diff(a: &[f64], b: &[f64]) -> f64 {
     a.iter()
         .zip(b)
@@ -306,13 +317,7 @@ fn max_diff(a: &[f64], b: &[f64]) -> f64 {
 #[test]
 fn every_method_meets_its_tolerance() {
     for s in method_scenes() {
-        let reference = solve_with(
-            &s,
-            Some(StepRule::Tolerance(1e-11)),
-            Precision::F64,
-            Some(Method::Suzuki4),
-        )
-        .v;
+        let reference = reference(&s, 1e-11);
         let check = solve_with(
             &s,
             Some(StepRule::Tolerance(1e-11)),
@@ -341,13 +346,7 @@ fn high_order_methods_converge_fast_across_contact_kinks() {
         (Method::Yoshida4, 3.5),
         (Method::Yoshida6, 5.0),
     ] {
-        let reference = solve_with(
-            s,
-            Some(StepRule::Tolerance(1e-12)),
-            Precision::F64,
-            Some(Method::Suzuki4),
-        )
-        .v;
+        let reference = reference(&s, 1e-12);
         let divs = [25.0, 35.0, 50.0, 71.0, 100.0];
         let errs: Vec<f64> = divs
             .iter()
@@ -382,13 +381,7 @@ fn error_estimate_tracks_the_actual_error_for_verlet() {
     use hertz_cradle::backend::{cpu::Cpu, run_with_estimate, Job};
     // Verlet is cleanly order 2 on these scenes, where Richardson is valid.
     for s in method_scenes() {
-        let reference = solve_with(
-            &s,
-            Some(StepRule::Tolerance(1e-11)),
-            Precision::F64,
-            Some(Method::Suzuki4),
-        )
-        .v;
+        let reference = reference(&s, 1e-11);
         let o = Overrides {
             method: Some(Method::Verlet),
             tolerance: Some(1e-5),
