@@ -346,7 +346,7 @@ fn high_order_methods_converge_fast_across_contact_kinks() {
         (Method::Yoshida4, 3.5),
         (Method::Yoshida6, 5.0),
     ] {
-        let reference = reference(&s, 1e-12);
+        let reference = reference(s, 1e-12);
         let divs = [25.0, 35.0, 50.0, 71.0, 100.0];
         let errs: Vec<f64> = divs
             .iter()
