@@ -462,8 +462,11 @@ impl Backend for Gpu {
                 Precision::F64 => self.runs::<f64>(&batch)?,
             };
             for ((i, (ch, solver)), run) in idx.into_iter().zip(batch).zip(runs) {
-                let h = plan(ch, solver).0.map_or(f64::NAN, |sp| sp.h);
-                out[i] = Some(Outcome::from_run(ch, &run, h));
+                out[i] = Some(Outcome::from_run(
+                    ch,
+                    &run,
+                    solver.dt(ch).unwrap_or(f64::NAN),
+                ));
             }
         }
         Ok(out

@@ -5,8 +5,6 @@ use num_traits::Float;
 /// A float the integrator is generic over. Conversions go through `f64`,
 /// the precision every scene is specified and reported in.
 pub trait Real: Float + bytemuck::Pod + Send + Sync + std::fmt::Debug + 'static {
-    /// Name as written in `--precision` and the CSV sidecar.
-    const NAME: &'static str;
     /// Whether velocity updates carry a Kahan compensation term.
     const COMPENSATED: bool;
     /// Closing speeds below this many ulps of v_in are round-off (f64: plain
@@ -17,7 +15,6 @@ pub trait Real: Float + bytemuck::Pod + Send + Sync + std::fmt::Debug + 'static 
 }
 
 impl Real for f64 {
-    const NAME: &'static str = "f64";
     const COMPENSATED: bool = false;
     const FLOOR_ULPS: f64 = 256.0;
     #[inline(always)]
@@ -31,7 +28,6 @@ impl Real for f64 {
 }
 
 impl Real for f32 {
-    const NAME: &'static str = "f32";
     const COMPENSATED: bool = true;
     const FLOOR_ULPS: f64 = 16.0;
     #[inline(always)]

@@ -140,18 +140,20 @@ impl Solver {
 
     /// The step (s) for this chain; `None` when nothing can collide.
     pub fn dt(&self, chain: &Chain) -> Option<f64> {
-        let tc = chain.time_scale()?;
-        Some(
-            self.step_factor
-                * match self.step {
-                    StepRule::Dt(dt) => dt,
-                    StepRule::Tolerance(tol) => {
-                        let (c, q) = error_model(self.method);
-                        let per_contact = (c / tol).powf(1.0 / q);
-                        tc / per_contact.max(MIN_STEPS_PER_CONTACT)
-                    }
-                },
-        )
+        chain.time_scale().map(|tc| self.step_for(tc))
+    }
+
+    /// The step (s) for a chain of time scale `tc`.
+    fn step_for(&self, tc: f64) -> f64 {
+        self.step_factor
+            * match self.step {
+                StepRule::Dt(dt) => dt,
+                StepRule::Tolerance(tol) => {
+                    let (c, q) = error_model(self.method);
+                    let per_contact = (c / tol).powf(1.0 / q);
+                    tc / per_contact.max(MIN_STEPS_PER_CONTACT)
+                }
+            }
     }
 
     /// The same solver with every step twice as long: the coarse run of a
@@ -177,8 +179,8 @@ impl Solver {
 
     /// How this chain is stepped; `None` when nothing can collide.
     pub fn step_plan(&self, chain: &Chain) -> Option<StepPlan> {
-        let h = self.dt(chain)?;
         let tc = chain.time_scale()?;
+        let h = self.step_for(tc);
         let p = self.method.order();
         // The p-th derivative of δ^{3/2} grows as T^{3/2−p} at time T from a
         // kink: steps h·(T/t_c)^{(p−3/2)/(p+1)} keep every local error below
