@@ -13,6 +13,17 @@ fn write(dir: &tempfile::TempDir, name: &str, text: &str) -> String {
     p.display().to_string()
 }
 
+/// Run and expect success; returns stdout.
+fn success(args: &[&str]) -> Vec<u8> {
+    cradle()
+        .args(args)
+        .assert()
+        .success()
+        .get_output()
+        .stdout
+        .clone()
+}
+
 /// Run and expect failure with exit code 2; returns stderr.
 fn bad_input(args: &[&str]) -> String {
     let out = cradle().args(args).output().unwrap();
@@ -28,14 +39,7 @@ fn bad_input(args: &[&str]) -> String {
 
 #[test]
 fn scenes_lists_the_builtins() {
-    let out = cradle()
-        .arg("scenes")
-        .assert()
-        .success()
-        .get_output()
-        .stdout
-        .clone();
-    let text = String::from_utf8(out).unwrap();
+    let text = String::from_utf8(success(&["scenes"])).unwrap();
     for name in [
         "seed-two-lifted",
         "seed-glued-pair-into-one",
@@ -50,26 +54,13 @@ fn scenes_lists_the_builtins() {
 
 #[test]
 fn run_prints_a_table_and_csv_row() {
-    let out = cradle()
-        .args(["run", "cradle-1"])
-        .assert()
-        .success()
-        .get_output()
-        .stdout
-        .clone();
-    let text = String::from_utf8(out).unwrap();
+    let text = String::from_utf8(success(&["run", "cradle-1"])).unwrap();
     assert!(
         text.contains("status  ok") && text.contains("0.98877"),
         "{text}"
     );
 
-    let out = cradle()
-        .args(["run", "cradle-2", "--format", "csv"])
-        .assert()
-        .success()
-        .get_output()
-        .stdout
-        .clone();
+    let out = success(&["run", "cradle-2", "--format", "csv"]);
     let mut r = csv::Reader::from_reader(out.as_slice());
     let h: Vec<String> = r.headers().unwrap().iter().map(String::from).collect();
     assert_eq!(
