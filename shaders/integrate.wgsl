@@ -1,10 +1,12 @@
-// The WGSL twin of src/engine/integrate.rs: same state (contact overlaps δ and
-// body velocities), same function names, same order of operations, so the GPU
-// gives the CPU's answers. One invocation integrates one scene.
+// The WGSL twin of src/engine/integrate.rs: same state (contact overlaps δ,
+// body velocities, body 0's displacement), same function names, same order of
+// operations, so the GPU gives the CPU's answers. One invocation integrates one
+// scene. The contact law (hertz_force, contact_force) twins src/engine/contact.rs.
 //
 // `real` is f32 here; the f64 pipeline is built from this text with the alias
 // line replaced (src/backend/gpu.rs). δ^{3/2} is written δ·√δ, never pow:
-// f64 pow returns garbage on lavapipe without any error.
+// f64 pow returns garbage on lavapipe without any error, and SPIR-V has no f64
+// sin or exp: pendulum_sin and decay are polynomials, the same on both sides.
 //
 // A scene may need 10^5 steps; one dispatch runs at most `budget` steps of a
 // scene (driver watchdogs on real GPUs; llvmpipe silently cuts loops short once
@@ -22,6 +24,7 @@ const END_SETTLED: u32 = 0u;
 const END_STEP_CAP: u32 = 1u;
 const END_TIME_CAP: u32 = 2u;
 const END_NON_FINITE: u32 = 3u;
+const END_DURATION: u32 = 4u;
 // Still integrating: resume at the next dispatch.
 const END_RUNNING: u32 = 255u;
 
@@ -32,26 +35,34 @@ const FINITE_LIMIT = 1e30;
 struct Header {
     // number of bodies
     nb: u32,
-    // offset of this scene's parameters in `params`:
-    // h, v_floor, max_time, one (= 1.0), h_min, t_scale, weights[n_weights], inv_m[nb], k[nc], inv_r[nc]
+    // offset of this scene's parameters in `params`: h, v_floor, max_time,
+    // one (= 1.0), h_min, t_scale, h_free, g, inv_l, drag, a_e,
+    // weights[n_weights], inv_m[nb], k[nc], inv_r[nc], gap[nc]
     input: u32,
     // offset of its state (the results once it ends) in `out_real`: v[nb], d[nc],
-    // cv[nb], cd[nc], t, t_first (−1: none), t_release (−1: none), max_overlap, max_ratio
+    // cv[nb], cd[nc], chi[nc], f[nc], t, t_first (−1: none), t_release (−1: none),
+    // max_overlap, max_ratio, x0, cx0, ct
     output: u32,
     max_steps: u32,
-    // number of Verlet substeps per step (their weights follow h_min in `params`)
+    // number of Verlet substeps per step (their weights follow a_e in `params`)
     n_weights: u32,
     // grading exponent in quarters (graded_step); 0: steps are not graded
     quarters: u32,
     // steps per dispatch, so that one dispatch stays under ~60,000 loop iterations
     budget: u32,
-    pad: u32,
+    // FLAG_*: pendulum, damped contacts, air drag, graded free-line steps
+    flags: u32,
 }
+
+const FLAG_PENDULUM: u32 = 1u;
+const FLAG_DAMPED: u32 = 2u;
+const FLAG_DRAG: u32 = 4u;
+const FLAG_GRADED: u32 = 8u;
 
 @group(0) @binding(0) var<storage, read> headers: array<Header>;
 @group(0) @binding(1) var<storage, read> params: array<real>;
 @group(0) @binding(2) var<storage, read_write> out_real: array<real>;
-// end (END_RUNNING while integrating), steps of each scene
+// end (END_RUNNING while integrating), steps, contacts of each scene
 @group(0) @binding(3) var<storage, read_write> out_u32: array<u32>;
 
 var<private> v: array<real, MAX_BALLS>;
@@ -59,12 +70,30 @@ var<private> d: array<real, MAX_BALLS>;
 var<private> cv: array<real, MAX_BALLS>;
 var<private> cd: array<real, MAX_BALLS>;
 var<private> f: array<real, MAX_BALLS>;
+var<private> acc: array<real, MAX_BALLS>;
+var<private> chi: array<real, MAX_BALLS>;
+var<private> d0: array<real, MAX_BALLS>;
 var<private> inv_m: array<real, MAX_BALLS>;
 var<private> k: array<real, MAX_BALLS>;
 var<private> inv_r: array<real, MAX_BALLS>;
+var<private> gap: array<real, MAX_BALLS>;
+// body 0's displacement and its compensation, simulated time and its compensation
+var<private> x0: array<real, 1>;
+var<private> cx0: array<real, 1>;
+var<private> tt: array<real, 1>;
+var<private> ct: array<real, 1>;
 // 1.0, read from the params buffer: a value the shader compiler cannot see,
 // so it cannot simplify the compensated sums in `add` away ((x+y)−x → y).
 var<private> one: real;
+// per-scene constants (engine::integrate::Consts)
+var<private> nb: u32;
+var<private> nc: u32;
+var<private> pend: bool;
+var<private> damped: bool;
+var<private> dragged: bool;
+var<private> g: real;
+var<private> inv_l: real;
+var<private> drag: real;
 
 // engine::contact::hertz_force
 fn hertz_force(kc: real, dc: real) -> real {
@@ -72,6 +101,48 @@ fn hertz_force(kc: real, dc: real) -> real {
         return kc * dc * sqrt(dc);
     }
     return real(0.0);
+}
+
+// engine::contact::contact_force — Hunt–Crossley, never negative.
+fn contact_force(kc: real, dc: real, chic: real, r: real) -> real {
+    return hertz_force(kc, dc) * max(real(1.0) + chic * r, real(0.0));
+}
+
+// engine::integrate::pendulum_sin — reduce to [−π/2, π/2], Taylor to θ^21.
+fn pendulum_sin(th: real) -> real {
+    let tau = real(6.283185307179586);
+    let pi = real(3.141592653589793);
+    let half_pi = real(1.5707963267948966);
+    var x = th - tau * floor(th / tau + real(0.5));
+    if (x > half_pi) {
+        x = pi - x;
+    } else if (x < -half_pi) {
+        x = -pi - x;
+    }
+    let x2 = x * x;
+    var p = real(1.0);
+    for (var n = 10u; n >= 1u; n--) {
+        p = real(1.0) - x2 * p / real(2u * n * (2u * n + 1u));
+    }
+    return x * p;
+}
+
+// engine::integrate::decay — e^{−y} for y ≥ 0.
+fn decay(y: real) -> real {
+    var z = y;
+    var kk = 0u;
+    while (z > real(0.0625) && kk < 64u) {
+        z = z * real(0.5);
+        kk++;
+    }
+    var p = real(1.0);
+    for (var n = 9u; n >= 1u; n--) {
+        p = real(1.0) - z * p / real(n);
+    }
+    for (var j = 0u; j < kk; j++) {
+        p = p * p;
+    }
+    return p;
 }
 
 // engine::integrate::add — x[i] += inc, Kahan-compensated when COMPENSATED.
@@ -86,30 +157,71 @@ fn add(x: ptr<private, array<real, MAX_BALLS>>, cx: ptr<private, array<real, MAX
     }
 }
 
-// engine::integrate::kick — body b is pushed left by contact b, right by b−1.
-fn kick(nb: u32, hh: real) {
-    add(&v, &cv, 0u, -(hh * f[0] * inv_m[0]));
-    for (var b = 1u; b < nb - 1u; b++) {
-        add(&v, &cv, b, hh * (f[b - 1u] - f[b]) * inv_m[b]);
+// `add` for a single value (body 0's displacement, the time).
+fn add1(x: ptr<private, array<real, 1>>, cx: ptr<private, array<real, 1>>, inc: real) {
+    if (COMPENSATED) {
+        let y = inc - (*cx)[0];
+        let t = ((*x)[0] + y) * one;
+        (*cx)[0] = (t - (*x)[0]) - y;
+        (*x)[0] = t;
+    } else {
+        (*x)[0] = (*x)[0] + inc;
     }
-    add(&v, &cv, nb - 1u, hh * f[nb - 2u] * inv_m[nb - 1u]);
+}
+
+// engine::integrate::kick — air drag, then contact forces and gravity; body b
+// is pushed left by contact b, right by contact b−1.
+fn kick(hh: real) {
+    if (dragged) {
+        let q = decay(drag * hh);
+        for (var b = 0u; b < nb; b++) {
+            v[b] = v[b] * q;
+            cv[b] = cv[b] * q;
+        }
+    }
+    for (var b = 0u; b < nb; b++) {
+        var inc: real;
+        if (b == 0u) {
+            inc = -(hh * f[0] * inv_m[0]);
+        } else if (b == nb - 1u) {
+            inc = hh * f[nb - 2u] * inv_m[nb - 1u];
+        } else {
+            inc = hh * (f[b - 1u] - f[b]) * inv_m[b];
+        }
+        if (pend) {
+            inc = inc + hh * acc[b];
+        }
+        add(&v, &cv, b, inc);
+    }
 }
 
 // engine::integrate::forces — returns whether any contact is closed.
-fn forces(nc: u32) -> bool {
+fn forces() -> bool {
     var closed = false;
     for (var c = 0u; c < nc; c++) {
-        f[c] = hertz_force(k[c], d[c]);
+        if (damped) {
+            f[c] = contact_force(k[c], d[c], chi[c], v[c] - v[c + 1u]);
+        } else {
+            f[c] = hertz_force(k[c], d[c]);
+        }
         closed = closed || (d[c] > real(0.0));
+    }
+    if (pend) {
+        var x = x0[0];
+        acc[0] = -(g * pendulum_sin(x * inv_l));
+        for (var b = 1u; b < nb; b++) {
+            x = x - gap[b - 1u] - d[b - 1u];
+            acc[b] = -(g * pendulum_sin(x * inv_l));
+        }
     }
     return closed;
 }
 
-// engine::integrate::graded_step — small steps near contact kinks: h·(T/tc)^(q/4)
-// at time distance T from a kink, at most T/2 before it and 2T after it, never
-// below h_min, landing on a kink ahead.
-fn graded_step(nc: u32, h: real, h_min: real, tc: real, quarters: u32) -> real {
-    var s = h;
+// engine::integrate::graded_step — at most s0; small steps near contact kinks:
+// h·(T/tc)^(q/4) at time distance T < tc from a kink, at most T/2 before it and
+// 2T after it at any distance, never below h_min, landing on a kink ahead.
+fn graded_step(s0: real, h: real, h_min: real, tc: real, quarters: u32) -> real {
+    var s = s0;
     for (var c = 0u; c < nc; c++) {
         let r = v[c] - v[c + 1u];
         let dc = d[c];
@@ -118,46 +230,59 @@ fn graded_step(nc: u32, h: real, h_min: real, tc: real, quarters: u32) -> real {
             continue;
         }
         let tk = abs(dc) / ar;
-        if (tk >= tc || tk >= s + s) {
+        if (tk >= s + s) {
             continue; // no restriction from this contact
         }
         let ahead = (dc < real(0.0) && r > real(0.0)) || (dc > real(0.0) && r < real(0.0));
-        let q = sqrt(sqrt(tk / tc));
-        var g = real(1.0);
-        for (var j = 0u; j < quarters; j++) {
-            g = g * q;
-        }
         // Halve the distance to a kink ahead, at most double the distance from
         // one behind: no substep reaches across a kink until the step is h_min.
         var cap = tk + tk;
         if (ahead) {
             cap = tk * real(0.5);
         }
-        let sc = max(min(h * g, cap), h_min);
-        s = min(s, sc);
+        var sc = cap;
+        if (tk < tc) {
+            let q = sqrt(sqrt(tk / tc));
+            var gr = real(1.0);
+            for (var j = 0u; j < quarters; j++) {
+                gr = gr * q;
+            }
+            sc = min(sc, h * gr);
+        }
+        s = min(s, max(sc, h_min));
     }
     return s;
 }
 
 // engine::integrate::integrate
 fn integrate(i: u32) {
-    if (out_u32[2u * i] != END_RUNNING) {
+    if (out_u32[3u * i] != END_RUNNING) {
         return;
     }
     let hd = headers[i];
-    let nb = hd.nb;
-    let nc = nb - 1u;
-    let h = params[hd.input];
-    let v_floor = params[hd.input + 1u];
-    let max_time = params[hd.input + 2u];
-    one = params[hd.input + 3u];
-    let h_min = params[hd.input + 4u];
-    let t_scale = params[hd.input + 5u];
-    let w0 = hd.input + 6u; // substep weights
+    nb = hd.nb;
+    nc = nb - 1u;
+    let p0 = hd.input;
+    let h = params[p0];
+    let v_floor = params[p0 + 1u];
+    let max_time = params[p0 + 2u];
+    one = params[p0 + 3u];
+    let h_min = params[p0 + 4u];
+    let t_scale = params[p0 + 5u];
+    let h_free = params[p0 + 6u];
+    g = params[p0 + 7u];
+    inv_l = params[p0 + 8u];
+    drag = params[p0 + 9u];
+    let a_e = params[p0 + 10u];
+    pend = (hd.flags & FLAG_PENDULUM) != 0u;
+    damped = (hd.flags & FLAG_DAMPED) != 0u;
+    dragged = (hd.flags & FLAG_DRAG) != 0u;
+    let graded = (hd.flags & FLAG_GRADED) != 0u;
+    let w0 = p0 + 11u; // substep weights
     let m0 = w0 + hd.n_weights; // inv_m
     let q = m0 + nb;
     let o = hd.output;
-    let s = o + 2u * (nb + nc);
+    let s = o + 2u * nb + 4u * nc;
     for (var b = 0u; b < nb; b++) {
         inv_m[b] = params[m0 + b];
         v[b] = out_real[o + b];
@@ -167,20 +292,32 @@ fn integrate(i: u32) {
     for (var c = 0u; c < nc; c++) {
         k[c] = params[q + c];
         inv_r[c] = params[q + nc + c];
+        gap[c] = params[q + 2u * nc + c];
         d[c] = out_real[o + nb + c];
         cd[c] = out_real[o + 2u * nb + nc + c];
+        chi[c] = out_real[o + 2u * nb + 2u * nc + c];
     }
-    // Forces are a function of δ, so the state needs no forces of its own.
-    var closed = forces(nc);
-    var t = out_real[s];
+    tt[0] = out_real[s];
     var t_first = out_real[s + 1u];
     var t_release = out_real[s + 2u];
     var max_ov = out_real[s + 3u];
     var max_ratio = out_real[s + 4u];
-    var steps = out_u32[2u * i + 1u];
+    x0[0] = out_real[s + 5u];
+    cx0[0] = out_real[s + 6u];
+    ct[0] = out_real[s + 7u];
+    var closed = forces();
+    // Damped forces depend on the velocity of the drift they were computed in:
+    // carry them over from the last dispatch, as the CPU carries them over.
+    if (damped) {
+        for (var c = 0u; c < nc; c++) {
+            f[c] = out_real[o + 2u * nb + 3u * nc + c];
+        }
+    }
+    var steps = out_u32[3u * i + 1u];
+    var contacts = out_u32[3u * i + 2u];
     var end = END_RUNNING;
     for (var it = 0u; it < hd.budget; it++) {
-        if (!closed) {
+        if (!closed && !pend) {
             // Free flight: jump to the next onset, if any.
             var found = false;
             var tau = real(0.0);
@@ -200,15 +337,16 @@ fn integrate(i: u32) {
                 end = END_SETTLED;
                 break;
             }
-            let capped = t + tau > max_time;
+            let capped = tt[0] + tau > max_time;
             if (capped) {
-                tau = max(max_time - t, real(0.0));
+                tau = max(max_time - tt[0], real(0.0));
             }
             if (tau > real(0.0)) {
                 for (var c = 0u; c < nc; c++) {
                     d[c] = d[c] + (v[c] - v[c + 1u]) * tau;
                 }
-                t = t + tau;
+                x0[0] = x0[0] + v[0] * tau;
+                tt[0] = tt[0] + tau;
             }
             if (capped) {
                 end = END_TIME_CAP;
@@ -217,47 +355,87 @@ fn integrate(i: u32) {
             d[next] = real(0.0);
             cd[next] = real(0.0);
             if (t_first < real(0.0)) {
-                t_first = t;
+                t_first = tt[0];
             }
+        }
+        if (pend && tt[0] >= max_time) {
+            end = END_DURATION;
+            break;
         }
         if (steps >= hd.max_steps) {
             end = END_STEP_CAP;
             break;
         }
-        if (t >= max_time) {
+        if (tt[0] >= max_time) {
             end = END_TIME_CAP;
             break;
         }
-        // One step: velocity-Verlet substeps (kick, drift, forces, kick).
+        // The step: graded near kinks; on a pendulum long in free flight and
+        // landing exactly on the duration.
         var step = h;
-        if (hd.quarters > 0u) {
-            step = graded_step(nc, h, h_min, t_scale, hd.quarters);
+        if (pend) {
+            var s0 = h_free;
+            if (closed) {
+                s0 = h;
+            }
+            step = graded_step(s0, h, h_min, t_scale, hd.quarters);
+        } else if (graded) {
+            step = graded_step(h, h, h_min, t_scale, hd.quarters);
         }
+        var last = false;
+        if (pend) {
+            let rest = (max_time - tt[0]) - ct[0];
+            if (rest <= step) {
+                step = rest;
+                last = true;
+            }
+        }
+        for (var c = 0u; c < nc; c++) {
+            d0[c] = d[c];
+            if (damped && d[c] <= real(0.0)) {
+                chi[c] = a_e / max(v[c] - v[c + 1u], v_floor);
+            }
+        }
+        // One step: velocity-Verlet substeps (kick, drift, forces, kick).
         for (var wi = 0u; wi < hd.n_weights; wi++) {
             let ws = params[w0 + wi] * step;
             let hh = ws * real(0.5);
-            kick(nb, hh);
+            kick(hh);
             for (var c = 0u; c < nc; c++) {
                 add(&d, &cd, c, ws * (v[c] - v[c + 1u]));
             }
-            closed = forces(nc);
-            kick(nb, hh);
+            add1(&x0, &cx0, ws * v[0]);
+            closed = forces();
+            kick(hh);
         }
-        t = t + step;
+        let t_start = tt[0];
+        if (last) {
+            tt[0] = max_time;
+            ct[0] = real(0.0);
+        } else {
+            add1(&tt, &ct, step);
+        }
         steps += 1u;
+        for (var c = 0u; c < nc; c++) {
+            if (d0[c] <= real(0.0) && d[c] > real(0.0)) {
+                contacts += 1u;
+                if (t_first < real(0.0)) {
+                    t_first = t_start;
+                }
+            }
+        }
         if (closed) {
             for (var c = 0u; c < nc; c++) {
                 max_ov = max(max_ov, d[c]);
                 max_ratio = max(max_ratio, d[c] * inv_r[c]);
             }
-        } else {
-            // Every contact just opened: locate each release inside the step.
-            for (var c = 0u; c < nc; c++) {
-                let d1 = d[c];
-                let d0 = d1 - step * (v[c] - v[c + 1u]);
-                if (d0 > real(0.0) && d1 <= real(0.0)) {
-                    t_release = max(t_release, t - step + step * d0 / (d0 - d1));
-                }
+        }
+        // Locate each release inside the step.
+        for (var c = 0u; c < nc; c++) {
+            let d1 = d[c];
+            let dd = d0[c];
+            if (dd > real(0.0) && d1 <= real(0.0)) {
+                t_release = max(t_release, t_start + step * dd / (dd - d1));
             }
         }
         var finite = true;
@@ -276,14 +454,20 @@ fn integrate(i: u32) {
     for (var c = 0u; c < nc; c++) {
         out_real[o + nb + c] = d[c];
         out_real[o + 2u * nb + nc + c] = cd[c];
+        out_real[o + 2u * nb + 2u * nc + c] = chi[c];
+        out_real[o + 2u * nb + 3u * nc + c] = f[c];
     }
-    out_real[s] = t;
+    out_real[s] = tt[0];
     out_real[s + 1u] = t_first;
     out_real[s + 2u] = t_release;
     out_real[s + 3u] = max_ov;
     out_real[s + 4u] = max_ratio;
-    out_u32[2u * i] = end;
-    out_u32[2u * i + 1u] = steps;
+    out_real[s + 5u] = x0[0];
+    out_real[s + 6u] = cx0[0];
+    out_real[s + 7u] = ct[0];
+    out_u32[3u * i] = end;
+    out_u32[3u * i + 1u] = steps;
+    out_u32[3u * i + 2u] = contacts;
 }
 
 @compute @workgroup_size(64)

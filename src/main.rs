@@ -182,6 +182,10 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                         Some(d) => {
                             return Err(flag("--trace-dt", &d.to_string(), "a time > 0 (s)").into())
                         }
+                        // A pendulum: 400 rows per swing; a free line: 20 per contact.
+                        None if chain.is_pendulum() => {
+                            std::f64::consts::TAU / chain.omega() / 400.0
+                        }
                         None => chain.time_scale().map_or(1e-6, |tc| tc / 20.0),
                     };
                     let file = File::create(&path)
@@ -198,12 +202,22 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 Format::Table => write!(
                     out,
                     "{}",
-                    row::table(&scene, sc.v_in(), &sc.velocity, &outcome)
+                    row::table(
+                        &scene,
+                        chain.v_in(),
+                        &sc.velocity,
+                        &outcome,
+                        chain.is_pendulum()
+                    )
                 )?,
                 Format::Csv => {
                     let mut w = csv::Writer::from_writer(&mut out);
-                    w.write_record(row::header(&[], sc.n))?;
-                    w.write_record(row::fields(0, &[], &outcome, sc.n))?;
+                    let shape = row::Shape {
+                        width: sc.n,
+                        pendulum: chain.is_pendulum(),
+                    };
+                    w.write_record(row::header(&[], shape))?;
+                    w.write_record(row::fields(0, &[], &outcome, shape))?;
                     w.flush()?;
                 }
             }

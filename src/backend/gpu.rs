@@ -53,14 +53,28 @@ pub struct GpuHeader {
     pub quarters: u32,
     /// Steps one dispatch may run for this scene.
     pub budget: u32,
-    pub pad: u32,
+    /// `FLAG_*`: pendulum, damped contacts, air drag, graded free-line steps.
+    pub flags: u32,
 }
+const FLAG_PENDULUM: u32 = 1;
+const FLAG_DAMPED: u32 = 2;
+const FLAG_DRAG: u32 = 4;
+const FLAG_GRADED: u32 = 8;
+/// Words of `out_u32` per scene: end, steps, contacts.
+const WORDS: usize = 3;
+/// Scalars after the per-body and per-contact state: t, t_first, t_release,
+/// max_overlap, max_ratio, x0, cx0, ct.
+const SCALARS: usize = 8;
 const _: () = assert!(std::mem::size_of::<GpuHeader>() == 32);
 
-/// Loop iterations of one step of a chain of `nb` bodies in `n_weights` substeps.
-fn loops_per_step(nb: usize, n_weights: usize) -> usize {
+/// Loop iterations of one step of `ch` in `n_weights` substeps (the
+/// pendulum's sine is a 10-term loop per body, air drag's decay up to ~25).
+fn loops_per_step(ch: &Chain, n_weights: usize) -> usize {
+    let nb = ch.n_bodies();
     let nc = nb - 1;
-    n_weights * (2 * nb + 2 * nc) + 2 * nc + nb + 8
+    let pend = if ch.is_pendulum() { 11 * nb } else { 0 };
+    let drag = if ch.air_drag > 0.0 { 2 * (nb + 25) } else { 0 };
+    n_weights * (2 * nb + 2 * nc + pend + drag) + 8 * nc + nb + 8
 }
 
 /// Steps per dispatch, the same for every scene of a dispatch: llvmpipe runs
@@ -71,12 +85,7 @@ fn loops_per_step(nb: usize, n_weights: usize) -> usize {
 pub fn dispatch_budget(jobs: &[(&Chain, &Solver)]) -> u32 {
     let worst = jobs
         .iter()
-        .map(|(ch, s)| {
-            loops_per_step(
-                ch.n_bodies(),
-                crate::engine::solver::weights(s.method).len(),
-            )
-        })
+        .map(|(ch, s)| loops_per_step(ch, crate::engine::solver::weights(s.method).len()))
         .max()
         .unwrap_or(1);
     (30_000 / worst).clamp(1, 4096) as u32
@@ -242,7 +251,7 @@ impl Gpu {
         let bytes = |(ch, s): &(&Chain, &Solver)| {
             let nb = ch.n_bodies() as u64;
             let n_w = crate::engine::solver::weights(s.method).len() as u64;
-            ((6 + n_w + 3 * nb) * real).max((4 * nb + 3) * real)
+            ((11 + n_w + 4 * nb) * real).max((6 * nb + SCALARS as u64) * real)
         };
         let mut out = Vec::with_capacity(jobs.len());
         let mut start = 0;
@@ -284,7 +293,15 @@ impl Gpu {
                 n_weights: sp.weights.len() as u32,
                 quarters: if sp.graded { sp.grade_quarters } else { 0 },
                 budget,
-                pad: 0,
+                flags: [
+                    (ch.is_pendulum(), FLAG_PENDULUM),
+                    (ch.damping_a > 0.0, FLAG_DAMPED),
+                    (ch.air_drag > 0.0, FLAG_DRAG),
+                    (sp.graded, FLAG_GRADED),
+                ]
+                .iter()
+                .filter(|(on, _)| *on)
+                .fold(0, |a, (_, f)| a | f),
             });
             params.push(R::of(sp.h));
             params.push(closing_speed_floor::<R>(ch.v_in(), sp.settle_rel));
@@ -292,16 +309,28 @@ impl Gpu {
             params.push(R::one()); // `one`: keeps the compensated sums from being optimised away
             params.push(R::of(sp.h_min));
             params.push(R::of(sp.t_scale));
+            params.push(R::of(sp.h_free));
+            params.push(R::of(ch.gravity));
+            params.push(R::of(if ch.is_pendulum() {
+                1.0 / ch.length
+            } else {
+                0.0
+            }));
+            params.push(R::of(ch.air_drag));
+            params.push(R::of(ch.damping_a));
             params.extend(sp.weights.iter().map(|&w| R::of(w)));
             params.extend(ch.mass.iter().map(|m| R::of(1.0 / m)));
             params.extend(ch.k.iter().map(|&k| R::of(k)));
             params.extend(ch.r_min.iter().map(|r| R::of(1.0 / r)));
+            params.extend(ch.gap.iter().map(|&g| R::of(g)));
             state.extend(ch.v0.iter().map(|&v| R::of(v)));
-            state.extend(ch.gap.iter().map(|&g| R::of(-g)));
-            state.extend(std::iter::repeat_n(R::zero(), 2 * nb - 1)); // compensations cv, cd
-            state.extend([0.0, -1.0, -1.0, 0.0, 0.0].map(R::of)); // t, t_first, t_release, max_ov, max_ratio
+            state.extend(ch.initial_overlap().iter().map(|&d| R::of(d)));
+            // compensations cv, cd; χ and forces (every contact starts open)
+            state.extend(std::iter::repeat_n(R::zero(), nb + 3 * (nb - 1)));
+            // t, t_first, t_release, max_ov, max_ratio, x0, cx0, ct
+            state.extend([0.0, -1.0, -1.0, 0.0, 0.0, ch.x0[0], 0.0, 0.0].map(R::of));
         }
-        let words0: Vec<u32> = jobs.iter().flat_map(|_| [END_RUNNING, 0]).collect();
+        let words0: Vec<u32> = jobs.iter().flat_map(|_| [END_RUNNING, 0, 0]).collect();
         let d = &self.device;
         let init = |label, contents: &[u8], usage| {
             d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
@@ -369,7 +398,7 @@ impl Gpu {
             enc.copy_buffer_to_buffer(&out_u, 0, &read_u, 0, size_u);
             self.queue.submit(Some(enc.finish()));
             let words: Vec<u32> = self.read_back(&read_u)?;
-            if !words.iter().step_by(2).any(|&e| e == END_RUNNING) {
+            if !words.iter().step_by(WORDS).any(|&e| e == END_RUNNING) {
                 break words;
             }
         };
@@ -382,27 +411,33 @@ impl Gpu {
 
         Ok(headers
             .iter()
+            .zip(jobs)
             .enumerate()
-            .map(|(i, h)| {
+            .map(|(i, (h, (ch, _)))| {
                 let (nb, o) = (h.nb as usize, h.output as usize);
-                let s = o + 2 * (2 * nb - 1);
+                let nc = nb - 1;
+                let s = 2 * nb + 4 * nc;
                 let f = |j: usize| reals[o + j].to64();
                 let when = |x: f64| (x >= 0.0).then_some(x);
+                let overlap: Vec<f64> = (nb..nb + nc).map(f).collect();
                 Run {
-                    end: match words[2 * i] {
+                    end: match words[WORDS * i] {
                         0 => End::Settled,
                         1 => End::StepCap,
                         2 => End::TimeCap,
+                        4 => End::Duration,
                         _ => End::NonFinite,
                     },
                     v: (0..nb).map(f).collect(),
-                    overlap: (nb..2 * nb - 1).map(f).collect(),
-                    steps: words[2 * i + 1] as u64,
-                    t: f(s - o),
-                    t_first_contact: when(f(s - o + 1)),
-                    t_last_release: when(f(s - o + 2)),
-                    max_overlap: f(s - o + 3),
-                    max_overlap_ratio: f(s - o + 4),
+                    x: ch.positions(f(s + 5), &overlap),
+                    overlap,
+                    steps: words[WORDS * i + 1] as u64,
+                    contacts: words[WORDS * i + 2] as u64,
+                    t: f(s),
+                    t_first_contact: when(f(s + 1)),
+                    t_last_release: when(f(s + 2)),
+                    max_overlap: f(s + 3),
+                    max_overlap_ratio: f(s + 4),
                 }
             })
             .collect())

@@ -4,7 +4,7 @@
 //! a degree of freedom, it is not a stiff spring. Contact c joins body c and
 //! body c+1; its stiffness comes from the two boundary balls (SPEC §2).
 
-use super::contact::{contact_time, hertz_stiffness};
+use super::contact::{contact_time, hertz_stiffness, hunt_crossley_a};
 use crate::error::InputError;
 use crate::scene::Scene;
 
@@ -25,21 +25,27 @@ pub struct Chain {
     /// Radius of the smaller boundary ball of each contact (m): Hertz theory
     /// is trusted while overlap/radius stays below [`super::MAX_OVERLAP_RATIO`].
     pub r_min: Vec<f64>,
+    /// Initial displacement of each body (m; arc length on a pendulum).
+    pub x0: Vec<f64>,
+    /// Gravity g (m/s²) of a pendulum; 0 for a free line.
+    pub gravity: f64,
+    /// String length L (m) of a pendulum; infinite for a free line.
+    pub length: f64,
+    /// Coefficient of restitution e (1: elastic).
+    pub restitution: f64,
+    /// Hunt–Crossley a = χ·v_imp for `restitution` (0: elastic).
+    pub damping_a: f64,
+    /// Linear air drag (1/s): dv/dt = −γ·v.
+    pub air_drag: f64,
 }
 
 impl Chain {
     /// Compile a checked scene. Features the engine does not integrate yet are
     /// refused here with a clear error rather than silently ignored.
     pub fn from_scene(s: &Scene) -> Result<Chain, InputError> {
-        if s.pendulum.is_some() {
-            return Err(unsupported("pendulum", "pendulum suspension is not implemented yet (issue: full pendulum cradles); remove [pendulum] to simulate a free line"));
-        }
-        if s.damping.is_some() {
-            return Err(unsupported("damping", "contact damping is not implemented yet (issue: full pendulum cradles); remove [damping] for an elastic cradle"));
-        }
         let mut body_of_ball = Vec::with_capacity(s.n);
-        let (mut mass, mut v0, mut k, mut gap, mut r_min) =
-            (vec![], vec![], vec![], vec![], vec![]);
+        let (mut mass, mut v0, mut k, mut gap, mut r_min, mut x0) =
+            (vec![], vec![], vec![], vec![], vec![], vec![]);
         for i in 0..s.n {
             if i > 0 && s.glue[i - 1] {
                 *mass.last_mut().unwrap() += s.mass[i];
@@ -59,9 +65,11 @@ impl Chain {
                 }
                 mass.push(s.mass[i]);
                 v0.push(s.velocity[i]);
+                x0.push(s.displacement[i]);
             }
             body_of_ball.push(mass.len() - 1);
         }
+        let restitution = s.damping.as_ref().map_or(1.0, |d| d.restitution);
         Ok(Chain {
             n_balls: s.n,
             body_of_ball,
@@ -70,16 +78,48 @@ impl Chain {
             k,
             gap,
             r_min,
+            x0,
+            gravity: s.pendulum.as_ref().map_or(0.0, |p| p.gravity),
+            length: s.pendulum.as_ref().map_or(f64::INFINITY, |p| p.length),
+            restitution,
+            damping_a: hunt_crossley_a(restitution),
+            air_drag: s.damping.as_ref().map_or(0.0, |d| d.air_drag),
         })
+    }
+
+    /// Whether the balls hang on strings (gravity acts; the run ends at the duration).
+    pub fn is_pendulum(&self) -> bool {
+        self.gravity > 0.0
+    }
+
+    /// Whether energy is lost on purpose (contact damping or air drag).
+    pub fn is_dissipative(&self) -> bool {
+        self.damping_a > 0.0 || self.air_drag > 0.0
+    }
+
+    /// Angular frequency √(g/L) of small swings (rad/s); 0 for a free line.
+    pub fn omega(&self) -> f64 {
+        (self.gravity / self.length).sqrt()
+    }
+
+    /// Speed at the bottom of the swing of a body released from displacement x (m/s).
+    fn swing_speed(&self, x: f64) -> f64 {
+        if self.is_pendulum() {
+            2.0 * (self.gravity * self.length).sqrt() * (0.5 * x / self.length).sin().abs()
+        } else {
+            0.0
+        }
     }
 
     pub fn n_bodies(&self) -> usize {
         self.mass.len()
     }
 
-    /// Largest initial speed |v| (SPEC §5).
+    /// Largest initial speed |v| (SPEC §5); for balls lifted on a pendulum,
+    /// their speed at the bottom of the swing, √(2gh).
     pub fn v_in(&self) -> f64 {
-        self.v0.iter().fold(0.0, |m, v| m.max(v.abs()))
+        let v = self.v0.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        self.x0.iter().fold(v, |m, &x| m.max(self.swing_speed(x)))
     }
 
     /// Shortest time scale of the chain (s): the two-body Hertz contact time of
@@ -89,7 +129,12 @@ impl Chain {
     pub fn time_scale(&self) -> Option<f64> {
         let vmax = self.v0.iter().copied().fold(f64::MIN, f64::max);
         let vmin = self.v0.iter().copied().fold(f64::MAX, f64::min);
-        let v = vmax - vmin;
+        // A lifted pendulum ball reaches its swing speed at the bottom.
+        let lift = self
+            .x0
+            .iter()
+            .fold(0.0f64, |m, &x| m.max(self.swing_speed(x)));
+        let v = vmax - vmin + lift;
         if v.is_nan() || v <= 0.0 || self.k.is_empty() {
             return None;
         }
@@ -101,28 +146,47 @@ impl Chain {
             .reduce(f64::min)
     }
 
-    /// Total energy (J) of a state: kinetic plus elastic.
-    pub fn energy(&self, v: &[f64], overlap: &[f64]) -> f64 {
+    /// Total energy (J) of a state: kinetic, elastic and (pendulum) potential,
+    /// m·g·L·(1 − cos(x/L)) = 2·m·g·L·sin²(x/2L) for each body at displacement `x`.
+    pub fn energy(&self, v: &[f64], overlap: &[f64], x: &[f64]) -> f64 {
         let kin: f64 = self.mass.iter().zip(v).map(|(m, v)| 0.5 * m * v * v).sum();
+        let pot: f64 = if self.is_pendulum() {
+            let (g, l) = (self.gravity, self.length);
+            self.mass
+                .iter()
+                .zip(x)
+                .map(|(m, x)| 2.0 * m * g * l * (0.5 * x / l).sin().powi(2))
+                .sum()
+        } else {
+            0.0
+        };
         let el: f64 = self
             .k
             .iter()
             .zip(overlap)
             .map(|(&k, &d)| super::contact::hertz_energy(k, d))
             .sum();
-        kin + el
+        kin + el + pot
+    }
+
+    /// Overlap of every contact at the start: δ_c = x_c − x_{c+1} − gap_c.
+    pub fn initial_overlap(&self) -> Vec<f64> {
+        (0..self.k.len())
+            .map(|c| self.x0[c] - self.x0[c + 1] - self.gap[c])
+            .collect()
+    }
+
+    /// Displacement of every body from body 0's and the overlaps:
+    /// x_{b+1} = x_b − gap_b − δ_b.
+    pub fn positions(&self, x0: f64, overlap: &[f64]) -> Vec<f64> {
+        let mut x = vec![x0; self.n_bodies()];
+        for c in 0..self.k.len() {
+            x[c + 1] = x[c] - self.gap[c] - overlap[c];
+        }
+        x
     }
 
     pub fn momentum(&self, v: &[f64]) -> f64 {
         self.mass.iter().zip(v).map(|(m, v)| m * v).sum()
-    }
-}
-
-fn unsupported(key: &str, what: &str) -> InputError {
-    InputError::Unsupported {
-        origin: "scene".into(),
-        line: None,
-        key: key.into(),
-        what: what.into(),
     }
 }

@@ -9,8 +9,16 @@
 //! Work a scene does not need is skipped: while every contact is open the chain
 //! is in free flight and is advanced analytically to the next contact onset
 //! (0 steps); the run ends as soon as no contact is closed and none is closing.
+//!
+//! Pendulum (`Chain::is_pendulum`): every body feels −g·sin(x_b/L), with x_b
+//! rebuilt from body 0's displacement and the overlaps. Free flight is then
+//! stepped with the long steps `StepPlan::h_free` (chosen from the tolerance
+//! and the duration), halving them towards each contact onset, and the run
+//! ends exactly at the duration. Damping: Hunt–Crossley contacts
+//! (`contact::contact_force`, χ set from each contact's closing speed when it
+//! closes) and air drag (the exact decay e^{−γ·s} in every kick).
 
-use super::contact::hertz_force;
+use super::contact::{contact_force, hertz_force};
 use super::real::Real;
 use super::Chain;
 use crate::scene::MAX_BALLS;
@@ -35,6 +43,8 @@ pub const FINITE_LIMIT: f64 = 1e30;
 pub enum End {
     /// Every contact open and no two bodies approaching: no collision can follow.
     Settled,
+    /// A pendulum run reached its duration.
+    Duration,
     StepCap,
     TimeCap,
     NonFinite,
@@ -79,6 +89,10 @@ pub struct Run {
     /// Largest overlap seen (m) and its ratio to the smaller boundary radius.
     pub max_overlap: f64,
     pub max_overlap_ratio: f64,
+    /// Final displacement of each body (m): body 0's, then x_{b+1} = x_b − gap_b − δ_b.
+    pub x: Vec<f64>,
+    /// Contact onsets (a contact open at the start of a step and closed at its end).
+    pub contacts: u64,
 }
 
 struct State<R> {
@@ -88,31 +102,108 @@ struct State<R> {
     d: [R; MAX_BALLS],
     /// Kahan compensation of `d` (f32 only).
     cd: [R; MAX_BALLS],
+    /// Contact forces (N).
     f: [R; MAX_BALLS],
-    x0: f64,
+    /// Gravity accelerations of the bodies (pendulum; m/s²).
+    acc: [R; MAX_BALLS],
+    /// Hunt–Crossley χ of each contact (s/m), set while it is open.
+    chi: [R; MAX_BALLS],
+    /// Overlaps at the start of the step (onset counting).
+    d0: [R; MAX_BALLS],
+    /// Displacement of body 0 (m) and its compensation.
+    x0: [R; 1],
+    cx0: [R; 1],
 }
 
+/// sin θ for the pendulum force: θ reduced to [−π/2, π/2], then Taylor to θ^21
+/// (error < 2e-18), the same operations as `pendulum_sin` in the shader
+/// (SPIR-V has no f64 sin).
 #[inline(always)]
-fn kick<R: Real>(
-    nb: usize,
-    v: &mut [R; MAX_BALLS],
-    cv: &mut [R; MAX_BALLS],
-    f: &[R; MAX_BALLS],
-    inv_m: &[R; MAX_BALLS],
-    hh: R,
-) {
-    // Body b is pushed left by contact b and right by contact b−1.
-    add(v, cv, 0, -(hh * f[0] * inv_m[0]));
-    for b in 1..nb - 1 {
-        add(v, cv, b, hh * (f[b - 1] - f[b]) * inv_m[b]);
+pub fn pendulum_sin<R: Real>(th: R) -> R {
+    use std::f64::consts::{FRAC_PI_2, PI, TAU};
+    let mut x = th - R::of(TAU) * (th / R::of(TAU) + R::of(0.5)).floor();
+    if x > R::of(FRAC_PI_2) {
+        x = R::of(PI) - x;
+    } else if x < -R::of(FRAC_PI_2) {
+        x = -R::of(PI) - x;
     }
-    add(v, cv, nb - 1, hh * f[nb - 2] * inv_m[nb - 1]);
+    let x2 = x * x;
+    let mut p = R::one();
+    for n in (1..=10u32).rev() {
+        p = R::one() - x2 * p / R::of((2 * n * (2 * n + 1)) as f64);
+    }
+    x * p
+}
+
+/// e^{−y} for y ≥ 0 (air drag over a kick): halve y below 1/16, Taylor to y^9,
+/// square back; the same operations as `decay` in the shader (SPIR-V has no
+/// f64 exp).
+#[inline(always)]
+pub fn decay<R: Real>(y: R) -> R {
+    let mut z = y;
+    let mut k = 0u32;
+    while z > R::of(0.0625) && k < 64 {
+        z = z * R::of(0.5);
+        k += 1;
+    }
+    let mut p = R::one();
+    for n in (1..=9u32).rev() {
+        p = R::one() - z * p / R::of(n as f64);
+    }
+    for _ in 0..k {
+        p = p * p;
+    }
+    p
+}
+
+/// Constants of one run, in the run's precision.
+struct Consts<R> {
+    nb: usize,
+    nc: usize,
+    inv_m: [R; MAX_BALLS],
+    gap: [R; MAX_BALLS],
+    pend: bool,
+    damped: bool,
+    dragged: bool,
+    g: R,
+    inv_l: R,
+    drag: R,
+}
+
+/// Half a kick of `hh` seconds: air drag (exact decay), then contact forces
+/// and gravity. Body b is pushed left by contact b and right by contact b−1.
+#[inline(always)]
+fn kick<R: Real>(k: &Consts<R>, s: &mut State<R>, hh: R) {
+    let nb = k.nb;
+    if k.dragged {
+        let q = decay(k.drag * hh);
+        for b in 0..nb {
+            s.v[b] = s.v[b] * q;
+            s.cv[b] = s.cv[b] * q;
+        }
+    }
+    let inv_m = &k.inv_m;
+    let f = &s.f;
+    let mut inc = [R::zero(); MAX_BALLS];
+    inc[0] = -(hh * f[0] * inv_m[0]);
+    for b in 1..nb - 1 {
+        inc[b] = hh * (f[b - 1] - f[b]) * inv_m[b];
+    }
+    inc[nb - 1] = hh * f[nb - 2] * inv_m[nb - 1];
+    for b in 0..nb {
+        let i = if k.pend {
+            inc[b] + hh * s.acc[b]
+        } else {
+            inc[b]
+        };
+        add(&mut s.v, &mut s.cv, b, i);
+    }
 }
 
 /// v[b] += inc; in f32 with Kahan compensation (`cv` carries the lost low
 /// bits): thousands of kicks 1e-4 the size of v would otherwise lose ~1e-4·v.
 #[inline(always)]
-fn add<R: Real>(v: &mut [R; MAX_BALLS], cv: &mut [R; MAX_BALLS], b: usize, inc: R) {
+fn add<R: Real, const N: usize>(v: &mut [R; N], cv: &mut [R; N], b: usize, inc: R) {
     if R::COMPENSATED {
         let y = inc - cv[b];
         let t = v[b] + y;
@@ -123,19 +214,27 @@ fn add<R: Real>(v: &mut [R; MAX_BALLS], cv: &mut [R; MAX_BALLS], b: usize, inc: 
     }
 }
 
-/// Forces of every contact from the overlaps; returns the largest overlap
-/// relative to the boundary radius, and whether any contact is closed.
+/// Forces of every contact from the overlaps (and, damped, the closing
+/// speeds); gravity from the displacements on a pendulum. Returns whether any
+/// contact is closed.
 #[inline(always)]
-fn forces<R: Real>(
-    nc: usize,
-    d: &[R; MAX_BALLS],
-    k: &[R; MAX_BALLS],
-    f: &mut [R; MAX_BALLS],
-) -> bool {
+fn forces<R: Real>(k: &Consts<R>, kc: &[R; MAX_BALLS], s: &mut State<R>) -> bool {
     let mut closed = false;
-    for c in 0..nc {
-        f[c] = hertz_force(k[c], d[c]);
-        closed |= d[c] > R::zero();
+    for c in 0..k.nc {
+        s.f[c] = if k.damped {
+            contact_force(kc[c], s.d[c], s.chi[c], s.v[c] - s.v[c + 1])
+        } else {
+            hertz_force(kc[c], s.d[c])
+        };
+        closed |= s.d[c] > R::zero();
+    }
+    if k.pend {
+        let mut x = s.x0[0];
+        s.acc[0] = -(k.g * pendulum_sin(x * k.inv_l));
+        for b in 1..k.nb {
+            x = x - k.gap[b - 1] - s.d[b - 1];
+            s.acc[b] = -(k.g * pendulum_sin(x * k.inv_l));
+        }
     }
     closed
 }
@@ -160,19 +259,25 @@ pub struct StepPlan {
     /// Closing speeds below this fraction of v_in are noise: the run ends
     /// (a tenth of the tolerance; 0 with a fixed `dt`).
     pub settle_rel: f64,
+    /// Pendulum: the step (s) while every contact is open; unused on a free line.
+    pub h_free: f64,
 }
 
-/// The step to take now. The Hertz force has a δ^{3/2} kink where a contact
-/// opens or closes, which costs a high-order method its order; steps are made
-/// small near every kink, on both sides: at time distance T = |δ|/|r| from a
-/// kink the step is h·(T/t_c)^(q/4) (the p-th derivative of the force grows as
-/// T^{3/2−p}), at most T/2 before the kink and 2T after it, never less than
-/// `h_min`, where a step crosses the kink.
+/// The step to take now, at most `s0`. The Hertz force has a δ^{3/2} kink
+/// where a contact opens or closes, which costs a high-order method its order;
+/// steps are made small near every kink, on both sides: at time distance
+/// T = |δ|/|r| < t_c from a kink the step is h·(T/t_c)^(q/4) (the p-th
+/// derivative of the force grows as T^{3/2−p}); at any distance it is at most
+/// T/2 before the kink and 2T after it, never less than `h_min`, where a step
+/// crosses the kink. On a free line `s0 = h`; on a pendulum in free flight
+/// `s0` is the long free-flight step, halved towards each onset.
 #[inline(always)]
+#[allow(clippy::too_many_arguments)]
 pub fn graded_step<R: Real>(
     nc: usize,
     d: &[R; MAX_BALLS],
     v: &[R; MAX_BALLS],
+    s0: R,
     h: R,
     h_min: R,
     tc: R,
@@ -180,7 +285,7 @@ pub fn graded_step<R: Real>(
 ) -> R {
     let zero = R::zero();
     let half = R::of(0.5);
-    let mut s = h;
+    let mut s = s0;
     for c in 0..nc {
         let r = v[c] - v[c + 1];
         let dc = d[c];
@@ -189,21 +294,24 @@ pub fn graded_step<R: Real>(
             continue;
         }
         let tk = dc.abs() / ar;
-        if tk >= tc || tk >= s + s {
+        if tk >= s + s {
             continue; // no restriction from this contact
         }
         let ahead = (dc < zero && r > zero) || (dc > zero && r < zero);
-        let q = (tk / tc).sqrt().sqrt();
-        let mut g = R::one();
-        for _ in 0..quarters {
-            g = g * q;
-        }
         // Halve the distance to a kink ahead, at most double the distance
         // from one behind: no substep (Yoshida's step backwards included)
         // reaches across a kink until the step is down to h_min.
         let cap = if ahead { tk * half } else { tk + tk };
-        let sc = (h * g).min(cap).max(h_min);
-        s = s.min(sc);
+        let mut sc = cap;
+        if tk < tc {
+            let q = (tk / tc).sqrt().sqrt();
+            let mut g = R::one();
+            for _ in 0..quarters {
+                g = g * q;
+            }
+            sc = sc.min(h * g);
+        }
+        s = s.min(sc.max(h_min));
     }
     s
 }
@@ -225,23 +333,53 @@ pub fn integrate<R: Real, O: Observer>(
         cd: [zero; MAX_BALLS],
         d: [zero; MAX_BALLS],
         f: [zero; MAX_BALLS],
-        x0: 0.0,
+        acc: [zero; MAX_BALLS],
+        chi: [zero; MAX_BALLS],
+        d0: [zero; MAX_BALLS],
+        x0: [R::of(ch.x0[0])],
+        cx0: [zero],
     };
-    let mut inv_m = [zero; MAX_BALLS];
-    let mut k = [zero; MAX_BALLS];
+    let mut kn = Consts {
+        nb,
+        nc,
+        inv_m: [zero; MAX_BALLS],
+        gap: [zero; MAX_BALLS],
+        pend: ch.is_pendulum(),
+        damped: ch.damping_a > 0.0,
+        dragged: ch.air_drag > 0.0,
+        g: R::of(ch.gravity),
+        inv_l: R::of(if ch.is_pendulum() {
+            1.0 / ch.length
+        } else {
+            0.0
+        }),
+        drag: R::of(ch.air_drag),
+    };
     let mut inv_r = [0.0f64; MAX_BALLS];
     for b in 0..nb {
         s.v[b] = R::of(ch.v0[b]);
-        inv_m[b] = R::of(1.0 / ch.mass[b]);
+        kn.inv_m[b] = R::of(1.0 / ch.mass[b]);
     }
+    let d_init = ch.initial_overlap();
     for c in 0..nc {
-        s.d[c] = R::of(-ch.gap[c]);
-        k[c] = R::of(ch.k[c]);
+        s.d[c] = R::of(d_init[c]);
+        kn.gap[c] = R::of(ch.gap[c]);
         inv_r[c] = 1.0 / ch.r_min[c];
     }
+    let kc = {
+        let mut k = [zero; MAX_BALLS];
+        for c in 0..nc {
+            k[c] = R::of(ch.k[c]);
+        }
+        k
+    };
+    let pend = kn.pend;
     let hr = R::of(plan.h);
+    let h_free = R::of(plan.h_free);
     let h_min = R::of(plan.h_min);
     let t_scale = R::of(plan.t_scale);
+    let quarters = if plan.graded { plan.grade_quarters } else { 0 };
+    let a_e = R::of(ch.damping_a);
     let half = R::of(0.5);
     // Closing speeds at round-off level are noise, not an approach: without
     // this floor two balls left at ±1e-15 m/s would "collide" a billion years
@@ -249,15 +387,14 @@ pub fn integrate<R: Real, O: Observer>(
     let v_floor = closing_speed_floor::<R>(ch.v_in(), plan.settle_rel);
     let mut t = 0.0f64;
     let mut steps = 0u64;
-    let mut closed = false;
+    let mut contacts = 0u64;
+    let mut closed = forces(&kn, &kc, &mut s);
     let (mut t_first, mut t_release) = (None, None);
     let (mut max_ov, mut max_ratio) = (0.0f64, 0.0f64);
     let observe = |t: f64, s: &State<R>, obs: &mut O| {
         if O::ACTIVE {
-            let mut x = vec![s.x0; nb];
-            for c in 0..nc {
-                x[c + 1] = x[c] - ch.gap[c] - s.d[c].to64();
-            }
+            let d: Vec<f64> = s.d[..nc].iter().map(|d| d.to64()).collect();
+            let x = ch.positions(s.x0[0].to64(), &d);
             let v: Vec<f64> = s.v[..nb].iter().map(|v| v.to64()).collect();
             obs.state(t, &x, &v);
         }
@@ -265,7 +402,7 @@ pub fn integrate<R: Real, O: Observer>(
     observe(t, &s, obs);
 
     let end = loop {
-        if !closed {
+        if !closed && !pend {
             // Free flight: every contact open. Jump to the next onset, if any.
             let mut tau = R::infinity();
             let mut next = None;
@@ -290,9 +427,7 @@ pub fn integrate<R: Real, O: Observer>(
                 for c in 0..nc {
                     s.d[c] = s.d[c] + (s.v[c] - s.v[c + 1]) * tau;
                 }
-                if O::ACTIVE {
-                    s.x0 += s.v[0].to64() * tau64;
-                }
+                s.x0[0] = s.x0[0] + s.v[0] * tau;
                 t += tau64;
                 observe(t, &s, obs);
             }
@@ -303,34 +438,70 @@ pub fn integrate<R: Real, O: Observer>(
             s.cd[next] = zero;
             t_first.get_or_insert(t);
         }
+        if pend && t >= lim.max_time {
+            break End::Duration;
+        }
         if steps >= lim.max_steps {
             break End::StepCap;
         }
         if t >= lim.max_time {
             break End::TimeCap;
         }
-        // One step: velocity-Verlet substeps (kick, drift, forces, kick).
-        let step = if plan.graded {
-            graded_step(nc, &s.d, &s.v, hr, h_min, t_scale, plan.grade_quarters)
+        // The step: graded near kinks; on a pendulum long in free flight and
+        // landing exactly on the duration.
+        let mut step = if pend {
+            graded_step(
+                nc,
+                &s.d,
+                &s.v,
+                if closed { hr } else { h_free },
+                hr,
+                h_min,
+                t_scale,
+                quarters,
+            )
+        } else if plan.graded {
+            graded_step(nc, &s.d, &s.v, hr, hr, h_min, t_scale, quarters)
         } else {
             hr
         };
+        let mut last = false;
+        if pend {
+            let rest = R::of(lim.max_time - t);
+            if rest <= step {
+                step = rest;
+                last = true;
+            }
+        }
+        for c in 0..nc {
+            s.d0[c] = s.d[c];
+            if kn.damped && s.d[c] <= zero {
+                // Hunt–Crossley: χ from the closing speed the contact closes with.
+                s.chi[c] = a_e / (s.v[c] - s.v[c + 1]).max(v_floor);
+            }
+        }
+        // One step: velocity-Verlet substeps (kick, drift, forces, kick).
         for &w in plan.weights {
             let ws = R::of(w) * step;
             let hh = ws * half;
-            kick(nb, &mut s.v, &mut s.cv, &s.f, &inv_m, hh);
+            kick(&kn, &mut s, hh);
             for c in 0..nc {
                 add(&mut s.d, &mut s.cd, c, ws * (s.v[c] - s.v[c + 1]));
             }
-            if O::ACTIVE {
-                s.x0 += s.v[0].to64() * ws.to64();
-            }
-            closed = forces(nc, &s.d, &k, &mut s.f);
-            kick(nb, &mut s.v, &mut s.cv, &s.f, &inv_m, hh);
+            add(&mut s.x0, &mut s.cx0, 0, ws * s.v[0]);
+            closed = forces(&kn, &kc, &mut s);
+            kick(&kn, &mut s, hh);
         }
         let h = step.to64();
-        t += h;
+        let t_start = t;
+        t = if last { lim.max_time } else { t + h };
         steps += 1;
+        for c in 0..nc {
+            if s.d0[c] <= zero && s.d[c] > zero {
+                contacts += 1;
+                t_first.get_or_insert(t_start);
+            }
+        }
         if closed {
             for c in 0..nc {
                 let d = s.d[c].to64();
@@ -339,18 +510,15 @@ pub fn integrate<R: Real, O: Observer>(
                 }
                 max_ratio = max_ratio.max(d * inv_r[c]);
             }
-        } else {
-            // Every contact just opened. With all forces now zero the last
-            // drift velocity equals the final one (exactly so for Verlet), so δ
-            // at the start of the step is recovered; locate each release by
-            // linear interpolation (graded methods land on it anyway).
-            for c in 0..nc {
-                let d1 = s.d[c].to64();
-                let d0 = d1 - h * (s.v[c] - s.v[c + 1]).to64();
-                if d0 > 0.0 && d1 <= 0.0 {
-                    let tr = t - h + h * d0 / (d0 - d1);
-                    t_release = Some(t_release.map_or(tr, |x: f64| x.max(tr)));
-                }
+        }
+        // Locate each release inside the step by linear interpolation of δ
+        // (graded methods land on it anyway).
+        for c in 0..nc {
+            let d1 = s.d[c].to64();
+            let d0 = s.d0[c].to64();
+            if d0 > 0.0 && d1 <= 0.0 {
+                let tr = t_start + h * d0 / (d0 - d1);
+                t_release = Some(t_release.map_or(tr, |x: f64| x.max(tr)));
             }
         }
         observe(t, &s, obs);
@@ -363,7 +531,9 @@ pub fn integrate<R: Real, O: Observer>(
     };
     let v: Vec<f64> = s.v[..nb].iter().map(|v| v.to64()).collect();
     let overlap: Vec<f64> = s.d[..nc].iter().map(|d| d.to64()).collect();
-    let end = if end == End::Settled && (v.iter().chain(&overlap).any(|x| !x.is_finite())) {
+    let x = ch.positions(s.x0[0].to64(), &overlap);
+    let settled = matches!(end, End::Settled | End::Duration);
+    let end = if settled && (v.iter().chain(&overlap).chain(&x).any(|x| !x.is_finite())) {
         End::NonFinite
     } else {
         end
@@ -378,5 +548,7 @@ pub fn integrate<R: Real, O: Observer>(
         t_last_release: t_release,
         max_overlap: max_ov,
         max_overlap_ratio: max_ratio,
+        x,
+        contacts,
     }
 }

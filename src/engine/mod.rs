@@ -34,6 +34,7 @@ pub const UNSTEPPED: StepPlan = StepPlan {
     grade_quarters: 0,
     t_scale: f64::INFINITY,
     settle_rel: 0.0,
+    h_free: f64::INFINITY,
 };
 
 /// Simulate one compiled chain with `solver`, reporting states to `obs`.

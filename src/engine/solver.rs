@@ -41,6 +41,21 @@ pub const GRADING_SCALE: f64 = 0.1;
 /// less than the error the tolerance allows anyway.
 pub const SETTLE_FRACTION: f64 = 0.1;
 
+/// Phase error per radian of each method on a harmonic oscillator,
+/// c·(ω·H)^p at step H (computed from the composition's rotation angle, see
+/// results/README.md), with a margin of 2 for the pendulum's nonlinearity.
+pub fn swing_error_coeff(m: Method) -> f64 {
+    match m {
+        Method::Verlet => 2.0 * 0.0417,
+        Method::Yoshida4 => 2.0 * 0.0663,
+        Method::Suzuki4 => 2.0 * 0.00093,
+        Method::Yoshida6 => 2.0 * 0.0038,
+    }
+}
+
+/// Longest free-flight step of a pendulum, in radians of swing (ω·H).
+pub const MAX_SWING_STEP: f64 = 0.5;
+
 /// Substep weights of each method: a symmetric composition of Verlet steps.
 pub fn weights(m: Method) -> &'static [f64] {
     const W4: f64 = 1.3512071919596578; // 1/(2 − 2^{1/3})
@@ -140,15 +155,29 @@ impl Solver {
 
     /// The step (s) for this chain; `None` when nothing can collide.
     pub fn dt(&self, chain: &Chain) -> Option<f64> {
-        chain.time_scale().map(|tc| self.step_for(tc))
+        chain.time_scale().map(|tc| self.step_for(tc, chain))
+    }
+
+    /// Contact events a run may see: 1 on a free line (the tolerance holds
+    /// for its one collision sequence); on a pendulum one per contact every
+    /// half swing over the duration. Their errors add up, so each event gets
+    /// the tolerance divided by their number.
+    pub fn events(&self, chain: &Chain) -> f64 {
+        if chain.is_pendulum() {
+            let half_swings = (chain.omega() * self.max_time / std::f64::consts::PI).max(1.0);
+            half_swings * chain.k.len() as f64
+        } else {
+            1.0
+        }
     }
 
     /// The step (s) for a chain of time scale `tc`.
-    fn step_for(&self, tc: f64) -> f64 {
+    fn step_for(&self, tc: f64, chain: &Chain) -> f64 {
         self.step_factor
             * match self.step {
                 StepRule::Dt(dt) => dt,
                 StepRule::Tolerance(tol) => {
+                    let tol = tol / self.events(chain);
                     let (c, q) = error_model(self.method);
                     let per_contact = (c / tol).powf(1.0 / q);
                     tc / per_contact.max(MIN_STEPS_PER_CONTACT)
@@ -180,7 +209,7 @@ impl Solver {
     /// How this chain is stepped; `None` when nothing can collide.
     pub fn step_plan(&self, chain: &Chain) -> Option<StepPlan> {
         let tc = chain.time_scale()?;
-        let h = self.step_for(tc);
+        let h = self.step_for(tc, chain);
         let p = self.method.order();
         // The p-th derivative of δ^{3/2} grows as T^{3/2−p} at time T from a
         // kink: steps h·(T/t_c)^{(p−3/2)/(p+1)} keep every local error below
@@ -198,6 +227,29 @@ impl Solver {
                 StepRule::Tolerance(tol) => SETTLE_FRACTION * tol,
                 StepRule::Dt(_) => 0.0,
             },
+            h_free: self.free_step(chain, h),
         })
+    }
+
+    /// A pendulum's step (s) while no contact is closed: the phase error of
+    /// the swings, c·(ω·H)^p per radian over ω·duration radians, is kept to
+    /// half the tolerance (velocities err by about the phase error times
+    /// v_in). Never shorter than the contact step `h`. A fixed `dt` is used
+    /// everywhere.
+    pub fn free_step(&self, chain: &Chain, h: f64) -> f64 {
+        if !chain.is_pendulum() {
+            return f64::INFINITY;
+        }
+        let w = chain.omega();
+        let free = match self.step {
+            StepRule::Dt(dt) => return self.step_factor * dt,
+            StepRule::Tolerance(tol) => {
+                let p = self.method.order() as f64;
+                let radians = (w * self.max_time).max(1.0);
+                let wh = (0.5 * tol / (swing_error_coeff(self.method) * radians)).powf(1.0 / p);
+                self.step_factor * wh.min(MAX_SWING_STEP) / w
+            }
+        };
+        free.max(h)
     }
 }

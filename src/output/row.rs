@@ -1,23 +1,41 @@
 //! One outcome row, the same for `cradle run --format csv` and every sweep row
-//! (SPEC §4): `id`, one column per axis, `status`, `v_0`..`v_{N−1}`,
-//! `ejected`, `energy_error`, `momentum_error`, `max_overlap_m`, `steps`,
-//! then `t_contact`, `t_release`, `dt` (s), `error_estimate` (relative to v_in,
-//! with `--error-estimate`; empty otherwise).
+//! (SPEC §4): `id`, one column per axis, `status`, `v_0`..`v_{N−1}`, on a
+//! pendulum the final displacements `x_0`..`x_{N−1}` (m, arc length),
+//! `ejected`, `energy_error`, `momentum_error` (empty on a pendulum, where
+//! gravity changes momentum), `max_overlap_m`, `steps`, then `contacts`
+//! (contact onsets), `energy_left` (final / initial energy), `t_contact`,
+//! `t_release`, `dt` (s), `error_estimate` (relative to v_in, with
+//! `--error-estimate`; empty otherwise).
 
 use crate::engine::Outcome;
 
-/// Column names for `axes` and a chain of at most `width` balls.
-pub fn header(axes: &[String], width: usize) -> Vec<String> {
+/// Which per-ball columns a table has.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Shape {
+    /// The largest number of balls.
+    pub width: usize,
+    /// Pendulum scenes: final displacements `x_i` too.
+    pub pendulum: bool,
+}
+
+/// Column names for `axes` and a table of `shape`.
+pub fn header(axes: &[String], shape: Shape) -> Vec<String> {
+    let width = shape.width;
     let mut h = vec!["id".to_string()];
     h.extend(axes.iter().cloned());
     h.push("status".into());
     h.extend((0..width).map(|i| format!("v_{i}")));
+    if shape.pendulum {
+        h.extend((0..width).map(|i| format!("x_{i}")));
+    }
     for c in [
         "ejected",
         "energy_error",
         "momentum_error",
         "max_overlap_m",
         "steps",
+        "contacts",
+        "energy_left",
         "t_contact",
         "t_release",
         "dt",
@@ -40,17 +58,23 @@ pub fn num(x: f64) -> String {
 }
 
 /// The fields of one row; missing balls (N below `width`) are empty.
-pub fn fields(id: u64, axis_values: &[String], o: &Outcome, width: usize) -> Vec<String> {
-    let mut r = Vec::with_capacity(12 + axis_values.len() + width);
+pub fn fields(id: u64, axis_values: &[String], o: &Outcome, shape: Shape) -> Vec<String> {
+    let width = shape.width;
+    let mut r = Vec::with_capacity(14 + axis_values.len() + 2 * width);
     r.push(id.to_string());
     r.extend(axis_values.iter().cloned());
     r.push(o.status.name().to_string());
     r.extend((0..width).map(|i| o.v.get(i).map_or(String::new(), |&v| num(v))));
+    if shape.pendulum {
+        r.extend((0..width).map(|i| o.x.get(i).map_or(String::new(), |&x| num(x))));
+    }
     r.push(o.ejected.to_string());
     for x in [o.energy_error, o.momentum_error, o.max_overlap_m] {
         r.push(num(x));
     }
     r.push(o.steps.to_string());
+    r.push(o.contacts.to_string());
+    r.push(num(o.energy_left));
     for x in [o.t_contact, o.t_release, o.dt, o.error_estimate] {
         r.push(num(x));
     }
@@ -58,23 +82,40 @@ pub fn fields(id: u64, axis_values: &[String], o: &Outcome, width: usize) -> Vec
 }
 
 /// A human-readable table of one outcome (`cradle run`).
-pub fn table(name: &str, v_in: f64, v0: &[f64], o: &Outcome) -> String {
+pub fn table(name: &str, v_in: f64, v0: &[f64], o: &Outcome, pendulum: bool) -> String {
     use std::fmt::Write;
     let mut s = String::new();
     let _ = writeln!(s, "scene   {name}");
     let _ = writeln!(s, "status  {}", o.status);
-    let _ = writeln!(
-        s,
-        "\n ball   v_initial (m/s)   v_final (m/s)   v_final / v_in"
-    );
+    if pendulum {
+        let _ = writeln!(
+            s,
+            "\n ball   v_initial (m/s)   v_final (m/s)   v_final / v_in   x_final (m)"
+        );
+    } else {
+        let _ = writeln!(
+            s,
+            "\n ball   v_initial (m/s)   v_final (m/s)   v_final / v_in"
+        );
+    }
     for (i, (a, b)) in v0.iter().zip(&o.v).enumerate() {
-        let _ = writeln!(s, " {i:>4}   {a:>15.6}   {b:>13.8}   {:>14.8}", b / v_in);
+        let _ = write!(s, " {i:>4}   {a:>15.6}   {b:>13.8}   {:>14.8}", b / v_in);
+        if pendulum {
+            let _ = write!(s, "   {:>11.4e}", o.x[i]);
+        }
+        let _ = writeln!(s);
     }
     let _ = writeln!(s);
     let _ = writeln!(s, "ejected          {}", o.ejected);
     let _ = writeln!(s, "energy_error     {:.3e}  (relative)", o.energy_error);
     let _ = writeln!(s, "momentum_error   {:.3e}  (relative)", o.momentum_error);
+    let _ = writeln!(
+        s,
+        "energy_left      {:.9}  (final / initial)",
+        o.energy_left
+    );
     let _ = writeln!(s, "max_overlap      {:.6e} m", o.max_overlap_m);
+    let _ = writeln!(s, "contacts         {}", o.contacts);
     let _ = writeln!(
         s,
         "contact          {:.6e} s .. {:.6e} s",

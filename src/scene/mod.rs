@@ -131,6 +131,9 @@ pub struct Scene {
     pub gap: Vec<f64>,
     pub glue: Vec<bool>,
     pub velocity: Vec<f64>,
+    /// Initial displacement of each ball (m, arc length): balls lifted by
+    /// `[launch] height` on a pendulum start here, at rest.
+    pub displacement: Vec<f64>,
     pub pendulum: Option<Pendulum>,
     pub damping: Option<Damping>,
     /// `[stop] duration` (s): the end of a pendulum run; a cap for a free line.
@@ -379,6 +382,7 @@ impl SceneSpec {
         };
         let gravity = pendulum.as_ref().map_or(STANDARD_GRAVITY, |p| p.gravity);
 
+        let mut displacement = vec![0.0; n];
         let velocity = match (&self.velocity, &self.launch) {
             (Some(_), Some(_)) => {
                 return Err(c.err(
@@ -421,15 +425,36 @@ impl SceneSpec {
                             "give `height` or `velocity`, not both",
                         ))
                     }
-                    (Some(h), None) => (2.0
-                        * gravity
-                        * c.num(
+                    (Some(h), None) => {
+                        let h = c.num(
                             "launch.height",
                             h,
                             positive,
                             "must be a finite height > 0 (m)",
-                        )?)
-                    .sqrt(),
+                        )?;
+                        match &pendulum {
+                            // Free line: the speed at impact.
+                            None => (2.0 * gravity * h).sqrt(),
+                            // Pendulum: lifted along the arc, released from rest.
+                            Some(p) => {
+                                if h > p.length {
+                                    return Err(c.err(
+                                        "launch.height",
+                                        h,
+                                        format!(
+                                            "at most the string length {} m (higher, the string goes slack)",
+                                            p.length
+                                        ),
+                                    ));
+                                }
+                                let arc = p.length * (1.0 - h / p.length).acos();
+                                for x in displacement.iter_mut().take(k) {
+                                    *x = -arc;
+                                }
+                                0.0
+                            }
+                        }
+                    }
                     (None, Some(v)) => {
                         c.num("launch.velocity", v, any, "must be a finite speed (m/s)")?
                     }
@@ -458,6 +483,13 @@ impl SceneSpec {
                     "glued balls must be launched with the same velocity",
                 ));
             }
+            if *w && displacement[i] != displacement[i + 1] {
+                return Err(c.err(
+                    "launch.balls",
+                    format!("lifts ball {i} but not ball {}", i + 1),
+                    "glued balls must be lifted together",
+                ));
+            }
         }
 
         let damping = match &self.damping {
@@ -481,6 +513,15 @@ impl SceneSpec {
                     .unwrap_or(0.0),
             }),
         };
+        if let (Some(d), None) = (&damping, &pendulum) {
+            if d.air_drag > 0.0 {
+                return Err(c.err(
+                    "damping.air_drag",
+                    d.air_drag,
+                    "0 without [pendulum] (air drag is modelled for pendulum runs; a free-line collision lasts microseconds)",
+                ));
+            }
+        }
         let stop = self.stop.clone().unwrap_or_default();
         let duration = c.opt(
             "stop.duration",
@@ -488,6 +529,15 @@ impl SceneSpec {
             positive,
             "must be a finite time > 0 (s)",
         )?;
+        if pendulum.is_some() && duration.is_none() {
+            return Err(InputError::Missing {
+                origin: self.origin.clone(),
+                line: self.line_of("pendulum"),
+                key: "stop.duration".into(),
+                help: "a pendulum runs for a given simulated time: add `[stop] duration = ...` (s)"
+                    .into(),
+            });
+        }
         let max_steps = match stop.max_steps {
             None => None,
             Some(s) if s >= 1 => Some(s as u64),
@@ -542,6 +592,7 @@ impl SceneSpec {
             gap,
             glue,
             velocity,
+            displacement,
             pendulum,
             damping,
             duration,

@@ -298,6 +298,19 @@ impl Sweep {
         })
     }
 
+    /// The per-ball columns of this sweep's table: displacements when its
+    /// scenes hang on strings (`[pendulum]`, or a `length`/`gravity` axis).
+    pub fn shape(&self) -> crate::output::row::Shape {
+        crate::output::row::Shape {
+            width: self.width,
+            pendulum: self.base.pendulum.is_some()
+                || self
+                    .axes
+                    .iter()
+                    .any(|a| matches!(a.param.name.as_str(), "length" | "gravity")),
+        }
+    }
+
     /// Index into each axis of scene `id` (first axis slowest).
     pub fn indices(&self, id: u64) -> Vec<usize> {
         let mut rest = id;

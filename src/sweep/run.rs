@@ -66,7 +66,7 @@ impl Sweep {
     }
 
     pub fn header(&self) -> Vec<String> {
-        row::header(&self.axis_names(), self.width)
+        row::header(&self.axis_names(), self.shape())
     }
 }
 
@@ -123,7 +123,7 @@ pub fn run(sweep: &Sweep, opts: &Options, backend: &dyn Backend) -> Result<Summa
                 {
                     let mut w = csv::Writer::from_writer(&mut bytes);
                     for (i, o) in (first..).zip(&outcomes) {
-                        w.write_record(row::fields(i, &sweep.axis_fields(i), o, sweep.width))?;
+                        w.write_record(row::fields(i, &sweep.axis_fields(i), o, sweep.shape()))?;
                         ok += (o.status == Status::Ok) as u64;
                     }
                     w.flush()?;
