@@ -8,7 +8,9 @@ use crate::engine::{Chain, Outcome, Solver, Status};
 
 /// One scene ready to integrate, or a combination of sweep values that did
 /// not make a valid scene (its row gets status `invalid`).
+/// (`Invalid` is rare: boxing `Run` would cost an allocation per scene.)
 #[derive(Clone, Debug)]
+#[allow(clippy::large_enum_variant)]
 pub enum Job {
     Run { chain: Chain, solver: Solver },
     Invalid { n_balls: usize },

@@ -79,7 +79,7 @@ pub fn hunt_crossley_restitution(a: f64) -> f64 {
             let w = x / (x - x1);
             return -(v + w * (v1 - v));
         }
-        if v1 >= 0.0 && v1 < 1e-12 && x1 <= x {
+        if (0.0..1e-12).contains(&v1) && x1 <= x {
             return 0.0; // stuck: everything dissipated
         }
         x = x1;
