@@ -261,3 +261,62 @@ fn shaders_validate_with_naga() {
         .unwrap_or_else(|e| panic!("{}: {e:?}", p.name()));
     }
 }
+
+/// Pendulums, damped contacts and air drag: 3–6 balls on strings of 0.1–1 m,
+/// 1–2 balls lifted 1–20 mm, gaps 0 or up to 0.1 mm, restitution 0.6–1, drag
+/// on a third of them, every method; plus damped free lines.
+fn pendulum_batch(precision: Precision) -> Vec<Job> {
+    let mut rnd = common::uniform(0x9e37_79b9_7f4a_7c15);
+    (0..48)
+        .map(|i| {
+            let n = 3 + (rnd() * 4.0) as usize;
+            let gap = if rnd() < 0.5 { 0.0 } else { 1e-4 * rnd() };
+            let e = if rnd() < 0.3 { 1.0 } else { 0.6 + 0.4 * rnd() };
+            let method = Method::ALL[(rnd() * Method::ALL.len() as f64) as usize];
+            let text = if i % 4 == 3 {
+                let v = 0.1 + rnd();
+                format!(
+                    "balls = {n}\ngap = {gap}\nvelocity = [{v}{}]\n[damping]\nrestitution = {e}",
+                    ",0".repeat(n - 1)
+                )
+            } else {
+                let l = 0.1 + 0.9 * rnd();
+                let drag = if rnd() < 0.3 { 0.5 * rnd() } else { 0.0 };
+                format!(
+                    "balls = {n}\ngap = {gap}\n[launch]\nballs = {}\nheight = {}\n[pendulum]\nlength = {l}\n[damping]\nrestitution = {e}\nair_drag = {drag}\n[stop]\nduration = {}",
+                    1 + (rnd() * 2.0) as usize,
+                    0.001 + 0.019 * rnd(),
+                    // past the first collision (a quarter swing), then up to 0.3 s
+                    1.3 * std::f64::consts::FRAC_PI_2 * (l / 9.80665f64).sqrt() + 0.3 * rnd()
+                )
+            };
+            job_with(&text, precision, Some(1e-4), Some(method))
+        })
+        .collect()
+}
+
+#[test]
+fn gpu_matches_cpu_on_pendulums_and_damping() {
+    let Some(g) = gpu() else { return };
+    for (p, bound) in [(Precision::F64, 1e-12), (Precision::F32, 1e-5)] {
+        let jobs = pendulum_batch(p);
+        let (c, d) = (Cpu.run(&jobs).unwrap(), g.run(&jobs).unwrap());
+        let worst = max_diff(&jobs, &c, &d);
+        let mut worst_x: f64 = 0.0;
+        for (x, y) in c.iter().zip(&d) {
+            assert!(x.contacts > 0, "{x:?}");
+            if p == Precision::F64 {
+                assert_eq!((x.steps, x.contacts), (y.steps, y.contacts));
+            }
+            for (a, b) in x.x.iter().zip(&y.x) {
+                worst_x = worst_x.max((a - b).abs());
+            }
+        }
+        eprintln!(
+            "{} pendulum GPU vs CPU: max |Δv|/v_in = {worst:e}, max |Δx| = {worst_x:e} m",
+            p.name()
+        );
+        assert!(worst <= bound, "{worst:e}");
+        assert!(worst_x <= bound * 0.1, "{worst_x:e}");
+    }
+}
