@@ -5,7 +5,7 @@ use std::path::PathBuf;
 
 use clap::{Parser, Subcommand, ValueEnum};
 
-use crate::engine::Overrides;
+use crate::engine::{Model, Overrides};
 use crate::error::InputError;
 use crate::scene::{Method, Precision};
 
@@ -119,6 +119,11 @@ pub struct SolverFlags {
     /// Target error of outcome velocities relative to v_in [default: 1e-6 (f64), 1e-5 (f32)].
     #[arg(long)]
     pub tolerance: Option<f64>,
+    /// Physics model: hertz (integrated contacts), hard-sphere (instantaneous
+    /// binary collisions, event-driven) or closure (the seed's simultaneous
+    /// separation, touching chains) [default: hertz].
+    #[arg(long)]
+    pub model: Option<String>,
     /// Integration method: verlet (order 2), suzuki4, yoshida4 (order 4), yoshida6 (order 6) [default: suzuki4].
     #[arg(long)]
     pub method: Option<String>,
@@ -139,12 +144,20 @@ impl SolverFlags {
                     .ok_or_else(|| flag("--method", m, &format!("one of: {}", Method::names())))?,
             ),
         };
+        let model = match &self.model {
+            None => None,
+            Some(m) => Some(
+                Model::parse(m)
+                    .ok_or_else(|| flag("--model", m, &format!("one of: {}", Model::names())))?,
+            ),
+        };
         let tolerance = match self.tolerance {
             None => None,
             Some(t) if t.is_finite() && t > 0.0 && t < 1.0 => Some(t),
             Some(t) => return Err(flag("--tolerance", &t.to_string(), "a number in (0, 1)")),
         };
         Ok(Overrides {
+            model,
             method,
             precision,
             tolerance,

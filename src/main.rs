@@ -12,7 +12,7 @@ use hertz_cradle::backend::cpu::Cpu;
 use hertz_cradle::backend::gpu::{find_adapter, Gpu, Want};
 use hertz_cradle::backend::Backend;
 use hertz_cradle::cli::{flag, parse_shard, BackendChoice, Cli, Command, Format};
-use hertz_cradle::engine::{simulate_chain, Chain, Silent, Solver};
+use hertz_cradle::engine::{simulate_chain, Chain, Model, Silent, Solver};
 use hertz_cradle::output::merge::merge;
 use hertz_cradle::output::{row, trace::TraceWriter};
 use hertz_cradle::scene::{builtin, Precision, Scene};
@@ -174,6 +174,17 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             let solver = Solver::resolve(&sc, &solver.overrides()?)?;
             let chain = Chain::from_scene(&sc)
                 .map_err(|e| anyhow::Error::new(e).context(format!("scene {scene}")))?;
+            if let Some(why) = solver.model.unsupported(&chain) {
+                return Err(flag("--model", solver.model.name(), &why).into());
+            }
+            if trace.is_some() && solver.model != Model::Hertz {
+                return Err(flag(
+                    "--trace",
+                    solver.model.name(),
+                    "a trajectory of the hertz model only (the others are instantaneous)",
+                )
+                .into());
+            }
             let outcome = match trace {
                 None => simulate_chain(&chain, &solver, &mut Silent),
                 Some(path) => {

@@ -43,6 +43,7 @@ fn job_with(
         precision: Some(precision),
         tolerance,
         method,
+        ..Default::default()
     };
     Job::Run {
         chain: Chain::from_scene(&s).unwrap(),

@@ -592,3 +592,79 @@ mod pendulum {
         );
     }
 }
+
+/// The comparison models (`--model`).
+mod models {
+    use super::*;
+    use hertz_cradle::engine::Model;
+
+    fn solve_model(text: &str, model: Model) -> Outcome {
+        let s = scene(text);
+        let o = Overrides {
+            model: Some(model),
+            ..Default::default()
+        };
+        let solver = Solver::resolve(&s, &o).unwrap();
+        simulate_chain(&Chain::from_scene(&s).unwrap(), &solver, &mut Silent)
+    }
+
+    #[test]
+    fn hard_spheres_give_the_textbook_answers() {
+        let hs = |t: &str| solve_model(t, Model::HardSphere);
+        // a glued pair into three balls: (1/27, 4/27, 4/9, 4/3)·v, the pair's balls repeated
+        let o = hs("balls = 5\nglue = \"=---\"\nvelocity = [0.8, 0.8, 0, 0, 0]");
+        let w = [1.0 / 27.0, 1.0 / 27.0, 4.0 / 27.0, 4.0 / 9.0, 4.0 / 3.0];
+        assert!(err(&o, &w, 0.8) < 1e-15, "{:?}", o.v);
+        assert_eq!(o.steps, 6, "binary collisions");
+        assert!(o.energy_error < 1e-15);
+        let o = hs("balls = 5\nvelocity = [1.0, 0, 0, 0, 0]");
+        assert_eq!(o.v, [0.0, 0.0, 0.0, 0.0, 1.0]);
+        let o = hs("balls = 5\nvelocity = [1.0, 1.0, 0, 0, 0]");
+        assert_eq!(o.v, [0.0, 0.0, 0.0, 1.0, 1.0]);
+        assert_eq!(o.ejected, 2);
+        let m = steel_mass();
+        let o = hs(&format!(
+            "balls = 2\nmass = [{m}, {}]\nvelocity = [1.0, 0]",
+            2.0 * m
+        ));
+        assert!(err(&o, &[-1.0 / 3.0, 2.0 / 3.0], 1.0) < 1e-15);
+        // The hertz engine agrees where the gaps are wide (SPEC §6).
+        let text = "balls = 5\nglue = \"=---\"\ngap = 1e-4\nvelocity = [0.8, 0.8, 0, 0, 0]";
+        let h = run_tight(text);
+        assert!(err(&h, &w, 0.8) < 1e-9, "{:?}", h.v);
+    }
+
+    #[test]
+    fn closure_is_the_seeds_simultaneous_separation_solved_exactly() {
+        let o = solve_model(
+            "balls = 5\nglue = \"=---\"\nvelocity = [0.8, 0.8, 0, 0, 0]",
+            Model::Closure,
+        );
+        // bodies (2m, m, m, m): v = (−0.1, 0.3, 0.6, 0.9) m/s
+        for (v, w) in o.v.iter().zip([-0.1, -0.1, 0.3, 0.6, 0.9]) {
+            assert!((v - w).abs() < 1e-14, "{:?}", o.v);
+        }
+        // separation speeds ∝ reduced masses 2/3, 1/2, 1/2
+        let (a, b, c) = (o.v[2] - o.v[1], o.v[3] - o.v[2], o.v[4] - o.v[3]);
+        assert!((a / (2.0 / 3.0) - b / 0.5).abs() < 1e-14 && (b - c).abs() < 1e-14);
+        assert!(o.energy_error < 1e-14 && o.momentum_error < 1e-14, "{o:?}");
+        // the numbers the seed quotes do not conserve energy: 0.64 vs 0.5996
+        let seed = [0.06, 0.12, 0.36, 1.0];
+        let e = seed[0] * seed[0] + 0.5 * seed[1..].iter().map(|v| v * v).sum::<f64>();
+        assert!((e - 0.64).abs() > 0.03);
+    }
+
+    #[test]
+    fn models_refuse_scenes_they_do_not_cover() {
+        let o = solve_model(
+            "balls = 3\ngap = 1e-5\nvelocity = [1.0, 0, 0]",
+            Model::Closure,
+        );
+        assert_eq!(o.status, Status::Invalid);
+        let o = solve_model(
+            "balls = 3\n[launch]\nheight = 0.01\n[pendulum]\nlength = 0.2\n[stop]\nduration = 1",
+            Model::HardSphere,
+        );
+        assert_eq!(o.status, Status::Invalid);
+    }
+}

@@ -12,7 +12,7 @@ use wgpu::util::DeviceExt;
 use super::{Backend, Job};
 use crate::engine::integrate::{closing_speed_floor, Run};
 use crate::engine::real::Real;
-use crate::engine::{plan, Chain, End, Outcome, Solver, UNSTEPPED};
+use crate::engine::{plan, simulate_chain, Chain, End, Model, Outcome, Silent, Solver, UNSTEPPED};
 use crate::scene::Precision;
 
 /// The shader source, f32 flavour; the f64 flavour swaps the `real` alias.
@@ -483,7 +483,9 @@ impl Backend for Gpu {
                 .iter()
                 .enumerate()
                 .filter_map(|(i, j)| match j {
-                    Job::Run { chain, solver } if solver.precision == p => {
+                    Job::Run { chain, solver }
+                        if solver.precision == p && solver.model == Model::Hertz =>
+                    {
                         Some((i, (chain, solver)))
                     }
                     _ => None,
@@ -510,7 +512,8 @@ impl Backend for Gpu {
             .map(|(o, j)| match (o, j) {
                 (Some(o), _) => o,
                 (None, Job::Invalid { n_balls }) => Outcome::invalid(*n_balls),
-                (None, Job::Run { chain, .. }) => Outcome::invalid(chain.n_balls),
+                // Comparison models are closed-form or event-driven: instant on the CPU.
+                (None, Job::Run { chain, solver }) => simulate_chain(chain, solver, &mut Silent),
             })
             .collect())
     }

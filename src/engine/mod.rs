@@ -4,12 +4,14 @@
 pub mod chain;
 pub mod contact;
 pub mod integrate;
+pub mod models;
 pub mod outcome;
 pub mod real;
 pub mod solver;
 
 pub use chain::Chain;
 pub use integrate::{integrate, End, Limits, Observer, Run, Silent, StepPlan};
+pub use models::Model;
 pub use outcome::{Outcome, Status, MAX_OVERLAP_RATIO};
 pub use solver::{Overrides, Solver, StepRule};
 
@@ -39,6 +41,16 @@ pub const UNSTEPPED: StepPlan = StepPlan {
 
 /// Simulate one compiled chain with `solver`, reporting states to `obs`.
 pub fn simulate_chain<O: Observer>(chain: &Chain, solver: &Solver, obs: &mut O) -> Outcome {
+    if solver.model != Model::Hertz {
+        if solver.model.unsupported(chain).is_some() {
+            return Outcome::invalid(chain.n_balls);
+        }
+        let run = match solver.model {
+            Model::HardSphere => models::hard_sphere(chain),
+            _ => models::closure(chain),
+        };
+        return Outcome::from_run(chain, &run, f64::NAN);
+    }
     let (sp, lim) = plan(chain, solver);
     // A chain where nothing can collide still runs: the integrator sees it settled.
     let sp = sp.unwrap_or(UNSTEPPED);

@@ -4,7 +4,7 @@
 use serde::Serialize;
 
 use super::integrate::StepPlan;
-use super::Chain;
+use super::{Chain, Model};
 use crate::error::InputError;
 use crate::scene::{Method, Precision, Scene};
 
@@ -91,6 +91,7 @@ pub fn error_model(m: Method) -> (f64, f64) {
 /// Flags that override a scene's `[solver]` table (`None`: not given).
 #[derive(Clone, Debug, Default)]
 pub struct Overrides {
+    pub model: Option<Model>,
     pub method: Option<Method>,
     pub precision: Option<Precision>,
     pub tolerance: Option<f64>,
@@ -108,6 +109,8 @@ pub enum StepRule {
 
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct Solver {
+    /// The physics: Hertz (integrated) or a comparison model.
+    pub model: Model,
     pub method: Method,
     pub precision: Precision,
     pub step: StepRule,
@@ -144,6 +147,7 @@ impl Solver {
             }
         }
         Ok(Solver {
+            model: o.model.unwrap_or_default(),
             method: o.method.or(scene.solver.method).unwrap_or(DEFAULT_METHOD),
             precision,
             step,
