@@ -79,6 +79,36 @@ pub enum Command {
         #[arg(long, value_name = "FILE")]
         out: PathBuf,
     },
+    /// Plot a phase diagram of an outcome table, or a trace's space-time diagram.
+    #[command(
+        after_help = "Examples:\n  cradle plot results/mass_gap.csv --x gap --y 'mass[2]' --z ejected --out ejected.png\n  cradle plot big.csv --x gap --y velocity[0] --z v_4 --where balls=5 --out v4.svg\n  cradle plot --trace trace.csv --out trace.png"
+    )]
+    Plot {
+        /// Outcome CSV (from `cradle sweep`).
+        #[arg(required_unless_present = "trace", conflicts_with = "trace")]
+        table: Option<PathBuf>,
+        /// A trace CSV (from `cradle run --trace`) instead: positions and velocities against time.
+        #[arg(long, value_name = "TRACE.csv")]
+        trace: Option<PathBuf>,
+        /// Column on the horizontal axis.
+        #[arg(long, required_unless_present = "trace")]
+        x: Option<String>,
+        /// Column on the vertical axis.
+        #[arg(long, required_unless_present = "trace")]
+        y: Option<String>,
+        /// Column that colours the cells.
+        #[arg(long, required_unless_present = "trace")]
+        z: Option<String>,
+        /// Keep only rows with COL = VALUE (repeatable): a slice of a sweep with more axes.
+        #[arg(long = "where", value_name = "COL=VALUE")]
+        wheres: Vec<String>,
+        /// Title [default: the sweep's description and the z column].
+        #[arg(long)]
+        title: Option<String>,
+        /// Image to write: FILE.png or FILE.svg.
+        #[arg(long, value_name = "FILE")]
+        out: PathBuf,
+    },
     /// List the built-in scenes.
     Scenes,
 }

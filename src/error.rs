@@ -54,6 +54,8 @@ pub enum InputError {
         key: String,
         what: String,
     },
+    #[error("{}: {what}", path.display())]
+    Data { path: PathBuf, what: String },
     #[error("{flag} {value}: {allowed}")]
     Flag {
         flag: String,

@@ -12,6 +12,7 @@ pub mod cli;
 pub mod engine;
 pub mod error;
 pub mod output;
+pub mod plot;
 pub mod scene;
 pub mod sweep;
 

@@ -15,6 +15,7 @@ use hertz_cradle::cli::{flag, parse_shard, BackendChoice, Cli, Command, Format};
 use hertz_cradle::engine::{simulate_chain, Chain, Model, Silent, Solver};
 use hertz_cradle::output::merge::merge;
 use hertz_cradle::output::{row, trace::TraceWriter};
+use hertz_cradle::plot;
 use hertz_cradle::scene::{builtin, Precision, Scene};
 use hertz_cradle::sweep::{run::Options, Sweep};
 use hertz_cradle::InputError;
@@ -154,6 +155,34 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 inputs.len(),
                 out.display()
             );
+            Ok(())
+        }
+        Command::Plot {
+            table,
+            trace,
+            x,
+            y,
+            z,
+            wheres,
+            title,
+            out,
+        } => {
+            match (table, trace) {
+                (_, Some(tr)) => plot::trace::plot(&tr, title.as_deref(), &out)?,
+                (Some(t), None) => plot::heatmap::plot(
+                    &t,
+                    &plot::heatmap::Args {
+                        x: x.unwrap_or_default(),
+                        y: y.unwrap_or_default(),
+                        z: z.unwrap_or_default(),
+                        wheres,
+                        title,
+                    },
+                    &out,
+                )?,
+                (None, None) => unreachable!("clap requires a table or --trace"),
+            }
+            eprintln!("cradle: wrote {}", out.display());
             Ok(())
         }
         Command::Scenes => {

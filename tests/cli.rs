@@ -246,3 +246,82 @@ fn bad_flags_and_missing_files_are_clear() {
     ]);
     assert!(err.contains("f32"), "{err}");
 }
+
+#[test]
+fn plots_are_valid_png_and_svg_with_clear_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    let sweep = write(
+        &dir,
+        "s.toml",
+        "description = \"test grid\"\n[scene]\nballs = 3\nvelocity = [1.0, 0, 0]\n[[axis]]\nparam = \"mass[1]\"\nlogspace = [0.01, 1.0, 4]\n[[axis]]\nparam = \"gap\"\nlinspace = [0, 1e-5, 3]\n[[axis]]\nparam = \"velocity[0]\"\nvalues = [0.5, 1.0]\n",
+    );
+    let csv = dir.path().join("s.csv").display().to_string();
+    cradle()
+        .args(["sweep", &sweep, "--out", &csv, "--backend", "cpu"])
+        .assert()
+        .success();
+    let png = dir.path().join("e.png").display().to_string();
+    let svg = dir.path().join("v.svg").display().to_string();
+    let grid = ["--x", "gap", "--y", "mass[1]", "--where", "velocity[0]=1"];
+    success(
+        &[
+            &["plot", &csv, "--z", "ejected", "--out", &png][..],
+            &grid[..],
+        ]
+        .concat(),
+    );
+    let bytes = fs::read(&png).unwrap();
+    assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n");
+    assert!(bytes.len() > 5000, "{} bytes", bytes.len());
+    success(&[&["plot", &csv, "--z", "v_2", "--out", &svg][..], &grid[..]].concat());
+    let text = fs::read_to_string(&svg).unwrap();
+    assert!(text.starts_with("<svg") && text.trim_end().ends_with("</svg>"));
+    assert!(text.contains("test grid: v_2"), "title from the sweep");
+    assert!(text.contains("mass[1] (kg), log scale") && text.contains("gap (m)"));
+    // errors: unknown column (with a suggestion), not a grid, bad extension
+    let e = bad_input(&[
+        "plot", &csv, "--x", "gap", "--y", "mass[1]", "--z", "ejectd", "--out", &png,
+    ]);
+    assert!(
+        e.contains("--z ejectd") && e.contains("did you mean `ejected`"),
+        "{e}"
+    );
+    let e = bad_input(&[
+        "plot", &csv, "--x", "gap", "--y", "mass[1]", "--z", "v_2", "--out", &png,
+    ]);
+    assert!(
+        e.contains("not a grid") && e.contains("velocity[0]") && e.contains("--where"),
+        "{e}"
+    );
+    let e = bad_input(
+        &[
+            &["plot", &csv, "--z", "v_2", "--out", "x.jpg"][..],
+            &grid[..],
+        ]
+        .concat(),
+    );
+    assert!(e.contains(".png or .svg"), "{e}");
+    let e = bad_input(&[
+        "plot",
+        &csv,
+        "--x",
+        "gap",
+        "--y",
+        "mass[1]",
+        "--z",
+        "status",
+        "--out",
+        &png,
+        "--where",
+        "velocity[0]=1",
+    ]);
+    assert!(e.contains("not a number"), "{e}");
+    // a trace: space-time diagram
+    let tr = dir.path().join("t.csv").display().to_string();
+    success(&["run", "cradle-1", "--trace", &tr]);
+    let tpng = dir.path().join("t.png").display().to_string();
+    success(&["plot", "--trace", &tr, "--out", &tpng]);
+    assert_eq!(&fs::read(&tpng).unwrap()[..4], b"\x89PNG");
+    let e = bad_input(&["plot", "--trace", &csv, "--out", &tpng]);
+    assert!(e.contains("not a trace"), "{e}");
+}

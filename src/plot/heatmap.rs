@@ -1,0 +1,338 @@
+//! `cradle plot FILE.csv --x COL --y COL --z COL --out FILE.png|svg`: a
+//! phase diagram. One cell per (x, y) of the sweep grid, coloured by z;
+//! log axes where the values are log-spaced; a discrete palette for integer
+//! columns with few values (`ejected`, `contacts`), else viridis (log-scaled
+//! when z spans more than three decades, as errors do); empty cells grey.
+
+use std::collections::HashMap;
+use std::path::Path;
+
+use anyhow::Result;
+use plotters::coord::Shift;
+use plotters::prelude::*;
+use plotters::style::colors::colormaps::ViridisRGB;
+
+use super::data::{distinct, log_spaced, Table};
+use super::{drawing, fonts, label, FONT};
+use crate::error::InputError;
+
+/// Tableau's ten colours: the discrete palette.
+const PALETTE: [RGBColor; 10] = [
+    RGBColor(31, 119, 180),
+    RGBColor(255, 127, 14),
+    RGBColor(44, 160, 44),
+    RGBColor(214, 39, 40),
+    RGBColor(148, 103, 189),
+    RGBColor(140, 86, 75),
+    RGBColor(227, 119, 194),
+    RGBColor(127, 127, 127),
+    RGBColor(188, 189, 34),
+    RGBColor(23, 190, 207),
+];
+const MISSING: RGBColor = RGBColor(215, 215, 215);
+
+pub struct Args {
+    pub x: String,
+    pub y: String,
+    pub z: String,
+    /// `COL=VALUE` row filters (a slice of a sweep with more axes).
+    pub wheres: Vec<String>,
+    pub title: Option<String>,
+}
+
+/// One axis of the grid.
+struct Axis {
+    label: String,
+    log: bool,
+    /// Cell edges in plot coordinates (log10 of the value on a log axis).
+    edges: Vec<f64>,
+}
+
+impl Axis {
+    fn new(col: &str, values: &[f64]) -> Axis {
+        let log = log_spaced(values);
+        let t: Vec<f64> = values
+            .iter()
+            .map(|&v| if log { v.log10() } else { v })
+            .collect();
+        let n = t.len();
+        let mut edges = Vec::with_capacity(n + 1);
+        if n == 1 {
+            let w = if t[0] == 0.0 { 0.5 } else { 0.5 * t[0].abs() };
+            edges.extend([t[0] - w, t[0] + w]);
+        } else {
+            edges.push(t[0] - 0.5 * (t[1] - t[0]));
+            for w in t.windows(2) {
+                edges.push(0.5 * (w[0] + w[1]));
+            }
+            edges.push(t[n - 1] + 0.5 * (t[n - 1] - t[n - 2]));
+        }
+        Axis {
+            label: label(col) + if log { ", log scale" } else { "" },
+            log,
+            edges,
+        }
+    }
+
+    fn format(&self, v: f64) -> String {
+        number(if self.log { 10f64.powf(v) } else { v })
+    }
+}
+
+/// A tick label: 3 significant digits.
+pub fn number(v: f64) -> String {
+    if v == 0.0 {
+        "0".into()
+    } else if !(1e-3..1e4).contains(&v.abs()) {
+        format!("{v:.2e}")
+    } else {
+        let s = format!("{v:.3}");
+        let s = s.trim_end_matches('0').trim_end_matches('.');
+        s.to_string()
+    }
+}
+
+enum Colours {
+    Discrete(Vec<f64>),
+    /// (low, high, log) in colour coordinates.
+    Continuous(f64, f64, bool),
+}
+
+impl Colours {
+    fn of(&self, z: f64) -> RGBColor {
+        if !z.is_finite() {
+            return MISSING;
+        }
+        match self {
+            Colours::Discrete(vals) => {
+                let i = vals.iter().position(|&v| v == z).unwrap_or(0);
+                PALETTE[i % PALETTE.len()]
+            }
+            Colours::Continuous(lo, hi, log) => {
+                let c = if *log {
+                    z.max(f64::MIN_POSITIVE).log10()
+                } else {
+                    z
+                };
+                let h = if hi > lo { (c - lo) / (hi - lo) } else { 0.5 };
+                ViridisRGB.get_color(h.clamp(0.0, 1.0) as f32)
+            }
+        }
+    }
+}
+
+pub fn plot(input: &Path, a: &Args, out: &Path) -> Result<()> {
+    fonts();
+    super::Format::of(out)?;
+    let mut t = Table::read(input)?;
+    t.filter(&a.wheres)?;
+    let (ix, iy, iz) = (
+        t.col("--x", &a.x)?,
+        t.col("--y", &a.y)?,
+        t.col("--z", &a.z)?,
+    );
+    let (xs, ys, zs) = (t.numbers(ix)?, t.numbers(iy)?, t.numbers(iz)?);
+    let (ux, uy) = (distinct(&xs), distinct(&ys));
+    for (u, c) in [(&ux, &a.x), (&uy, &a.y)] {
+        if u.is_empty() {
+            return Err(InputError::Data {
+                path: input.into(),
+                what: format!("column `{c}` has no numbers"),
+            }
+            .into());
+        }
+    }
+    // Every (x, y) at most once: otherwise the table is not a grid in x, y.
+    let mut cells: HashMap<(usize, usize), f64> = HashMap::new();
+    for r in 0..xs.len() {
+        if !(xs[r].is_finite() && ys[r].is_finite()) {
+            continue;
+        }
+        let i = ux.partition_point(|&v| v < xs[r]);
+        let j = uy.partition_point(|&v| v < ys[r]);
+        if cells.insert((i, j), zs[r]).is_some() {
+            let axes: Vec<&str> = t
+                .header
+                .iter()
+                .skip(1)
+                .take_while(|h| *h != "status")
+                .map(String::as_str)
+                .filter(|h| *h != a.x && *h != a.y)
+                .collect();
+            return Err(InputError::Data {
+                path: input.into(),
+                what: format!(
+                    "not a grid in ({}, {}): several rows have {} = {}, {} = {}{}",
+                    a.x,
+                    a.y,
+                    a.x,
+                    xs[r],
+                    a.y,
+                    ys[r],
+                    if axes.is_empty() {
+                        String::new()
+                    } else {
+                        format!(
+                            "; the table has other axes ({}): pick one value of each with --where COL=VALUE",
+                            axes.join(", ")
+                        )
+                    }
+                ),
+            }
+            .into());
+        }
+    }
+    let (ax, ay) = (Axis::new(&a.x, &ux), Axis::new(&a.y, &uy));
+    let zf: Vec<f64> = cells.values().copied().filter(|z| z.is_finite()).collect();
+    let uz = distinct(&zf);
+    let colours =
+        if !uz.is_empty() && uz.len() <= PALETTE.len() && uz.iter().all(|z| z.fract() == 0.0) {
+            Colours::Discrete(uz)
+        } else {
+            let (lo, hi) = zf
+                .iter()
+                .fold((f64::MAX, f64::MIN), |(l, h), &z| (l.min(z), h.max(z)));
+            if zf.is_empty() {
+                Colours::Continuous(0.0, 1.0, false)
+            } else if lo > 0.0 && hi / lo > 1e3 {
+                Colours::Continuous(lo.log10(), hi.log10(), true)
+            } else {
+                Colours::Continuous(lo, hi, false)
+            }
+        };
+    let title = a.title.clone().unwrap_or_else(|| {
+        let sidecar = format!("{}.json", input.display());
+        let desc = std::fs::read_to_string(sidecar)
+            .ok()
+            .and_then(|s| serde_json::from_str::<serde_json::Value>(&s).ok())
+            .and_then(|v| v["sweep"]["description"].as_str().map(str::to_string));
+        match desc {
+            Some(d) => format!("{d}: {}", a.z),
+            None => format!(
+                "{}: {}",
+                input.file_stem().unwrap_or_default().to_string_lossy(),
+                a.z
+            ),
+        }
+    });
+    let grid = Grid {
+        title,
+        ax,
+        ay,
+        cells,
+        colours,
+        z_label: label(&a.z),
+    };
+    crate::with_canvas!(out, (960, 720), |area| draw(area, &grid))
+}
+
+struct Grid {
+    title: String,
+    ax: Axis,
+    ay: Axis,
+    cells: HashMap<(usize, usize), f64>,
+    colours: Colours,
+    z_label: String,
+}
+
+fn draw<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, g: &Grid) -> Result<()> {
+    area.fill(&WHITE).map_err(drawing)?;
+    let w = area.dim_in_pixel().0 as i32;
+    let (main, bar) = area.split_horizontally(w - 170);
+    let (ex, ey) = (&g.ax.edges, &g.ay.edges);
+    let mut ch = ChartBuilder::on(&main)
+        .caption(&g.title, (FONT, 20))
+        .margin(15)
+        .x_label_area_size(55)
+        .y_label_area_size(85)
+        .build_cartesian_2d(ex[0]..ex[ex.len() - 1], ey[0]..ey[ey.len() - 1])
+        .map_err(drawing)?;
+    let fx = |v: &f64| g.ax.format(*v);
+    let fy = |v: &f64| g.ay.format(*v);
+    ch.configure_mesh()
+        .disable_mesh()
+        .x_desc(&g.ax.label)
+        .y_desc(&g.ay.label)
+        .x_label_formatter(&fx)
+        .y_label_formatter(&fy)
+        .label_style((FONT, 14))
+        .axis_desc_style((FONT, 16))
+        .draw()
+        .map_err(drawing)?;
+    let mut rects = Vec::new();
+    for i in 0..ex.len() - 1 {
+        for j in 0..ey.len() - 1 {
+            let z = g.cells.get(&(i, j)).copied().unwrap_or(f64::NAN);
+            rects.push(Rectangle::new(
+                [(ex[i], ey[j]), (ex[i + 1], ey[j + 1])],
+                g.colours.of(z).filled(),
+            ));
+        }
+    }
+    ch.draw_series(rects).map_err(drawing)?;
+    match &g.colours {
+        Colours::Discrete(vals) => {
+            // swatches from the top, one per value
+            let n = (vals.len() as f64).max(8.0);
+            let mut lg = ChartBuilder::on(&bar)
+                .caption(&g.z_label, (FONT, 16))
+                .margin(20)
+                .margin_top(60)
+                .build_cartesian_2d(0.0..3.0, -0.5..n - 0.5)
+                .map_err(drawing)?;
+            lg.draw_series(vals.iter().enumerate().map(|(i, _)| {
+                let y = n - 1.0 - i as f64;
+                Rectangle::new(
+                    [(0.0, y - 0.4), (0.9, y + 0.4)],
+                    PALETTE[i % PALETTE.len()].filled(),
+                )
+            }))
+            .map_err(drawing)?;
+            lg.draw_series(vals.iter().enumerate().map(|(i, v)| {
+                Text::new(
+                    number(*v),
+                    (1.2, n - 1.0 - i as f64 + 0.25),
+                    (FONT, 16).into_font(),
+                )
+            }))
+            .map_err(drawing)?;
+        }
+        Colours::Continuous(lo, hi, log) => {
+            let (lo, hi) = if hi > lo {
+                (*lo, *hi)
+            } else {
+                (lo - 0.5, hi + 0.5)
+            };
+            let mut cb = ChartBuilder::on(&bar)
+                .margin(20)
+                .margin_top(60)
+                .margin_bottom(70)
+                .y_label_area_size(70)
+                .build_cartesian_2d(0.0..1.0, lo..hi)
+                .map_err(drawing)?;
+            let fz = |v: &f64| number(if *log { 10f64.powf(*v) } else { *v });
+            cb.configure_mesh()
+                .disable_mesh()
+                .disable_x_axis()
+                .y_desc(g.z_label.clone() + if *log { ", log scale" } else { "" })
+                .y_label_formatter(&fz)
+                .label_style((FONT, 13))
+                .axis_desc_style((FONT, 15))
+                .draw()
+                .map_err(drawing)?;
+            let steps = 200;
+            cb.draw_series((0..steps).map(|k| {
+                let a = lo + (hi - lo) * k as f64 / steps as f64;
+                let b = lo + (hi - lo) * (k + 1) as f64 / steps as f64;
+                let z = if *log {
+                    10f64.powf(0.5 * (a + b))
+                } else {
+                    0.5 * (a + b)
+                };
+                Rectangle::new([(0.0, a), (1.0, b)], g.colours.of(z).filled())
+            }))
+            .map_err(drawing)?;
+        }
+    }
+    Ok(())
+}

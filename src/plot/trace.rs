@@ -1,0 +1,166 @@
+//! `cradle plot --trace TRACE.csv --out FILE.png|svg`: a space-time diagram
+//! of a trace (`cradle run --trace`): each ball's position against time, drawn
+//! at its rest slot i·s plus its displacement (s: the largest displacement
+//! amplitude, so swings do not overlap), and below it each ball's velocity.
+
+use std::path::Path;
+
+use anyhow::Result;
+use plotters::coord::Shift;
+use plotters::prelude::*;
+
+use super::data::Table;
+use super::heatmap::number;
+use super::{drawing, fonts, FONT};
+use crate::error::InputError;
+
+/// Most points drawn per line (longer traces are thinned evenly).
+const MAX_POINTS: usize = 20_000;
+
+struct Trace {
+    title: String,
+    t: Vec<f64>,
+    x: Vec<Vec<f64>>,
+    v: Vec<Vec<f64>>,
+    spacing: f64,
+}
+
+pub fn plot(input: &Path, title: Option<&str>, out: &Path) -> Result<()> {
+    fonts();
+    super::Format::of(out)?;
+    let table = Table::read(input)?;
+    let n = table.header.iter().filter(|h| h.starts_with("x_")).count();
+    if n == 0 || table.header.len() != 1 + 2 * n || table.header[0] != "t" {
+        return Err(InputError::Data {
+            path: input.into(),
+            what: "not a trace: the columns must be t, x_0.., v_0.. (cradle run --trace)".into(),
+        }
+        .into());
+    }
+    let every = table.rows.len().div_ceil(MAX_POINTS).max(1);
+    let keep = |col: Vec<f64>| -> Vec<f64> {
+        let last = col.len() - 1;
+        col.into_iter()
+            .enumerate()
+            .filter(|(i, _)| i % every == 0 || *i == last)
+            .map(|(_, v)| v)
+            .collect()
+    };
+    let t = keep(table.numbers(0)?);
+    let mut x = vec![];
+    let mut v = vec![];
+    for i in 0..n {
+        x.push(keep(
+            table.numbers(table.col("--trace", &format!("x_{i}"))?)?,
+        ));
+        v.push(keep(
+            table.numbers(table.col("--trace", &format!("v_{i}"))?)?,
+        ));
+    }
+    let amp = x.iter().flatten().fold(
+        0.0f64,
+        |m, &a| if a.is_finite() { m.max(a.abs()) } else { m },
+    );
+    let trace = Trace {
+        title: title.map(str::to_string).unwrap_or_else(|| {
+            format!(
+                "{}: {n} balls",
+                input.file_stem().unwrap_or_default().to_string_lossy()
+            )
+        }),
+        t,
+        x,
+        v,
+        spacing: if amp > 0.0 { amp } else { 1.0 },
+    };
+    crate::with_canvas!(out, (1000, 800), |area| draw(area, &trace))
+}
+
+fn range(vals: impl Iterator<Item = f64>) -> (f64, f64) {
+    let (lo, hi) = vals
+        .filter(|v| v.is_finite())
+        .fold((f64::MAX, f64::MIN), |(l, h), v| (l.min(v), h.max(v)));
+    if lo > hi {
+        (0.0, 1.0)
+    } else if lo == hi {
+        (
+            lo - 0.5 * lo.abs().max(1e-12),
+            hi + 0.5 * hi.abs().max(1e-12),
+        )
+    } else {
+        let pad = 0.05 * (hi - lo);
+        (lo - pad, hi + pad)
+    }
+}
+
+fn draw<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, tr: &Trace) -> Result<()> {
+    area.fill(&WHITE).map_err(drawing)?;
+    let area = area.titled(&tr.title, (FONT, 20)).map_err(drawing)?;
+    let h = area.dim_in_pixel().1 as i32;
+    let (top, bottom) = area.split_vertically(h * 3 / 5);
+    let (t0, t1) = (tr.t[0], tr.t[tr.t.len() - 1]);
+    let colour = |i: usize| Palette99::pick(i).to_rgba();
+    let s = tr.spacing;
+    let ft = |v: &f64| number(*v);
+    let (ylo, yhi) = range(
+        tr.x.iter()
+            .enumerate()
+            .flat_map(|(i, x)| x.iter().map(move |a| i as f64 * s + a)),
+    );
+    let mut ch = ChartBuilder::on(&top)
+        .margin(12)
+        .x_label_area_size(45)
+        .y_label_area_size(85)
+        .build_cartesian_2d(t0..t1, ylo..yhi)
+        .map_err(drawing)?;
+    ch.configure_mesh()
+        .x_desc("t (s)")
+        .y_desc(format!("position x_i + i·s (m), s = {}", number(s)))
+        .x_label_formatter(&ft)
+        .y_label_formatter(&ft)
+        .label_style((FONT, 13))
+        .axis_desc_style((FONT, 15))
+        .draw()
+        .map_err(drawing)?;
+    for (i, x) in tr.x.iter().enumerate() {
+        let c = colour(i);
+        ch.draw_series(LineSeries::new(
+            tr.t.iter().zip(x).map(|(&t, &a)| (t, i as f64 * s + a)),
+            c.stroke_width(2),
+        ))
+        .map_err(drawing)?
+        .label(format!("ball {i}"))
+        .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], c.stroke_width(3)));
+    }
+    ch.configure_series_labels()
+        .position(SeriesLabelPosition::UpperLeft)
+        .label_font((FONT, 13))
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .draw()
+        .map_err(drawing)?;
+    let (vlo, vhi) = range(tr.v.iter().flatten().copied());
+    let mut cv = ChartBuilder::on(&bottom)
+        .margin(12)
+        .x_label_area_size(45)
+        .y_label_area_size(85)
+        .build_cartesian_2d(t0..t1, vlo..vhi)
+        .map_err(drawing)?;
+    cv.configure_mesh()
+        .x_desc("t (s)")
+        .y_desc("velocity v_i (m/s)")
+        .x_label_formatter(&ft)
+        .y_label_formatter(&ft)
+        .label_style((FONT, 13))
+        .axis_desc_style((FONT, 15))
+        .draw()
+        .map_err(drawing)?;
+    for (i, v) in tr.v.iter().enumerate() {
+        cv.draw_series(LineSeries::new(
+            tr.t.iter().zip(v).map(|(&t, &a)| (t, a)),
+            colour(i).stroke_width(2),
+        ))
+        .map_err(drawing)?;
+    }
+    Ok(())
+}
