@@ -392,8 +392,14 @@ fn integrate(i: u32) {
         }
         for (var c = 0u; c < nc; c++) {
             d0[c] = d[c];
-            if (damped && d[c] <= real(0.0)) {
-                chi[c] = a_e / max(v[c] - v[c + 1u], v_floor);
+            if (damped) {
+                // χ = a/v_imp: the closing speed at onset, or the largest since.
+                let chi_c = a_e / max(v[c] - v[c + 1u], v_floor);
+                if (d[c] <= real(0.0)) {
+                    chi[c] = chi_c;
+                } else {
+                    chi[c] = min(chi[c], chi_c);
+                }
             }
         }
         // One step: velocity-Verlet substeps (kick, drift, forces, kick).

@@ -8,10 +8,11 @@ use std::path::PathBuf;
 /// `InputError`s; they travel as `anyhow` errors and exit with code 1.
 #[derive(Debug, thiserror::Error)]
 pub enum InputError {
-    #[error("cannot read {}: {source}", path.display())]
+    #[error("cannot read {}: {error}", path.display())]
     Read {
         path: PathBuf,
-        source: std::io::Error,
+        /// Not a `#[source]`: the message already says it, once.
+        error: std::io::Error,
     },
     #[error("{origin}:{line}:{col}: {message}")]
     Syntax {
@@ -105,9 +106,9 @@ impl Source {
     }
 
     pub fn read(path: &std::path::Path) -> Result<Self, InputError> {
-        let text = std::fs::read_to_string(path).map_err(|source| InputError::Read {
+        let text = std::fs::read_to_string(path).map_err(|error| InputError::Read {
             path: path.to_path_buf(),
-            source,
+            error,
         })?;
         Ok(Source::new(path.display().to_string(), text))
     }

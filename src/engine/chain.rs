@@ -14,6 +14,8 @@ pub struct Chain {
     pub n_balls: usize,
     /// Body index of each ball.
     pub body_of_ball: Vec<usize>,
+    /// Mass of each ball (kg).
+    pub ball_mass: Vec<f64>,
     /// Mass of each body (kg).
     pub mass: Vec<f64>,
     /// Initial velocity of each body (m/s).
@@ -73,6 +75,7 @@ impl Chain {
         Ok(Chain {
             n_balls: s.n,
             body_of_ball,
+            ball_mass: s.mass.clone(),
             mass,
             v0,
             k,

@@ -16,7 +16,7 @@
 //! and the duration), halving them towards each contact onset, and the run
 //! ends exactly at the duration. Damping: Hunt–Crossley contacts
 //! (`contact::contact_force`, χ set from each contact's closing speed when it
-//! closes) and air drag (the exact decay e^{−γ·s} in every kick).
+//! closes, lowered if it is later driven closed faster) and air drag (the exact decay e^{−γ·s} in every kick).
 
 use super::contact::{contact_force, hertz_force};
 use super::real::Real;
@@ -475,9 +475,16 @@ pub fn integrate<R: Real, O: Observer>(
         }
         for c in 0..nc {
             s.d0[c] = s.d[c];
-            if kn.damped && s.d[c] <= zero {
-                // Hunt–Crossley: χ from the closing speed the contact closes with.
-                s.chi[c] = a_e / (s.v[c] - s.v[c + 1]).max(v_floor);
+            if kn.damped {
+                // Hunt–Crossley: χ = a/v_imp, v_imp the closing speed the contact
+                // closes with — or, if it is driven harder while closed (a gentle
+                // touch, then a hit from behind), the largest closing speed since.
+                let chi = a_e / (s.v[c] - s.v[c + 1]).max(v_floor);
+                s.chi[c] = if s.d[c] <= zero {
+                    chi
+                } else {
+                    s.chi[c].min(chi)
+                };
             }
         }
         // One step: velocity-Verlet substeps (kick, drift, forces, kick).

@@ -67,6 +67,8 @@ pub struct Outcome {
     pub steps: u64,
     /// Final over initial energy.
     pub energy_left: f64,
+    /// Kinetic energy of the last ball over the initial energy.
+    pub energy_last: f64,
     /// Contact onsets.
     pub contacts: u64,
     /// Final displacement of each ball (m; arc length on a pendulum).
@@ -132,6 +134,17 @@ impl Outcome {
             max_overlap_m: run.max_overlap,
             steps: run.steps,
             energy_left: if e0 > 0.0 { e1 / e0 } else { f64::NAN },
+            energy_last: {
+                let last = chain.body_of_ball.len() - 1;
+                let vl = run.v[chain.body_of_ball[last]];
+                // the last ball's own mass: its body's mass shared by its balls
+                let m_ball = chain.ball_mass[last];
+                if e0 > 0.0 {
+                    0.5 * m_ball * vl * vl / e0
+                } else {
+                    f64::NAN
+                }
+            },
             contacts: run.contacts,
             x: chain.body_of_ball.iter().map(|&b| run.x[b]).collect(),
             t_end: run.t,
@@ -153,6 +166,7 @@ impl Outcome {
             max_overlap_m: f64::NAN,
             steps: 0,
             energy_left: f64::NAN,
+            energy_last: f64::NAN,
             contacts: 0,
             x: vec![f64::NAN; n_balls],
             t_end: f64::NAN,

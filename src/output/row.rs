@@ -3,11 +3,12 @@
 //! pendulum the final displacements `x_0`..`x_{N−1}` (m, arc length),
 //! `ejected`, `energy_error`, `momentum_error` (empty on a pendulum, where
 //! gravity changes momentum), `max_overlap_m`, `steps`, then `contacts`
-//! (contact onsets), `energy_left` (final / initial energy), `t_contact`,
+//! (contact onsets), `energy_left` (final / initial energy), `energy_last`
+//! (the last ball's kinetic energy / initial energy), `t_contact`,
 //! `t_release`, `dt` (s), `error_estimate` (relative to v_in, with
 //! `--error-estimate`; empty otherwise).
 
-use crate::engine::Outcome;
+use crate::engine::{Outcome, Status};
 
 /// Which per-ball columns a table has.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -36,6 +37,7 @@ pub fn header(axes: &[String], shape: Shape) -> Vec<String> {
         "steps",
         "contacts",
         "energy_left",
+        "energy_last",
         "t_contact",
         "t_release",
         "dt",
@@ -68,13 +70,18 @@ pub fn fields(id: u64, axis_values: &[String], o: &Outcome, shape: Shape) -> Vec
     if shape.pendulum {
         r.extend((0..width).map(|i| o.x.get(i).map_or(String::new(), |&x| num(x))));
     }
-    r.push(o.ejected.to_string());
+    r.push(if o.status == Status::Invalid {
+        String::new()
+    } else {
+        o.ejected.to_string()
+    });
     for x in [o.energy_error, o.momentum_error, o.max_overlap_m] {
         r.push(num(x));
     }
     r.push(o.steps.to_string());
     r.push(o.contacts.to_string());
     r.push(num(o.energy_left));
+    r.push(num(o.energy_last));
     for x in [o.t_contact, o.t_release, o.dt, o.error_estimate] {
         r.push(num(x));
     }

@@ -25,7 +25,7 @@ impl Table {
             .map_err(|e| match e.into_kind() {
                 csv::ErrorKind::Io(source) => InputError::Read {
                     path: path.to_path_buf(),
-                    source,
+                    error: source,
                 },
                 k => data_err(path, format!("not a CSV table: {k:?}")),
             })?;

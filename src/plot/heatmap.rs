@@ -44,13 +44,17 @@ pub struct Args {
 struct Axis {
     label: String,
     log: bool,
+    /// Text values (e.g. `glue`), placed at 0, 1, … in order of appearance.
+    cats: Option<Vec<String>>,
+    /// Number of values when they are few integers (ticks on each), else 0.
+    integers: usize,
     /// Cell edges in plot coordinates (log10 of the value on a log axis).
     edges: Vec<f64>,
 }
 
 impl Axis {
-    fn new(col: &str, values: &[f64]) -> Axis {
-        let log = log_spaced(values);
+    fn new(col: &str, values: &[f64], cats: Option<Vec<String>>) -> Axis {
+        let log = cats.is_none() && log_spaced(values);
         let t: Vec<f64> = values
             .iter()
             .map(|&v| if log { v.log10() } else { v })
@@ -70,18 +74,66 @@ impl Axis {
         Axis {
             label: label(col) + if log { ", log scale" } else { "" },
             log,
+            integers: if values.len() <= 20 && values.iter().all(|v| v.fract() == 0.0) {
+                values.len()
+            } else {
+                0
+            },
+            cats,
             edges,
         }
     }
 
     fn format(&self, v: f64) -> String {
-        number(if self.log { 10f64.powf(v) } else { v })
+        match &self.cats {
+            Some(c) if (v - v.round()).abs() < 1e-6 && v >= 0.0 => {
+                c.get(v.round() as usize).cloned().unwrap_or_default()
+            }
+            Some(_) => String::new(),
+            None => number(if self.log { 10f64.powf(v) } else { v }),
+        }
     }
+
+    /// Tick labels to ask for: one per category or per integer value.
+    fn ticks(&self) -> usize {
+        match &self.cats {
+            Some(c) => c.len() + 1,
+            None if self.integers > 0 => self.integers + 1,
+            None => 10,
+        }
+    }
+}
+
+/// A column as coordinates: numbers, or (when any cell is text) the index of
+/// each distinct text in order of first appearance.
+fn coords(t: &Table, i: usize) -> (Vec<f64>, Option<Vec<String>>) {
+    if let Ok(v) = t.numbers(i) {
+        return (v, None);
+    }
+    let mut cats: Vec<String> = vec![];
+    let v = t
+        .rows
+        .iter()
+        .map(|r| match cats.iter().position(|c| *c == r[i]) {
+            Some(k) => k as f64,
+            None => {
+                cats.push(r[i].clone());
+                (cats.len() - 1) as f64
+            }
+        })
+        .collect();
+    (v, Some(cats))
 }
 
 /// A tick label: 3 significant digits.
 pub fn number(v: f64) -> String {
-    if v == 0.0 {
+    number_in(v, 0.0)
+}
+
+/// A tick label on an axis spanning `span`: values within 1e-9·span of zero
+/// (round-off of the tick positions) print as 0.
+pub fn number_in(v: f64, span: f64) -> String {
+    if v == 0.0 || v.abs() < 1e-9 * span {
         "0".into()
     } else if !(1e-3..1e4).contains(&v.abs()) {
         format!("{v:.2e}")
@@ -104,10 +156,7 @@ impl Colours {
             return MISSING;
         }
         match self {
-            Colours::Discrete(vals) => {
-                let i = vals.iter().position(|&v| v == z).unwrap_or(0);
-                PALETTE[i % PALETTE.len()]
-            }
+            Colours::Discrete(vals) => PALETTE[slot(vals, z)],
             Colours::Continuous(lo, hi, log) => {
                 let c = if *log {
                     z.max(f64::MIN_POSITIVE).log10()
@@ -121,6 +170,19 @@ impl Colours {
     }
 }
 
+/// Palette slot of a discrete value: small non-negative integers keep their
+/// own colour in every plot (ejected = 1 is always blue); else by rank.
+fn slot(vals: &[f64], z: f64) -> usize {
+    if vals
+        .iter()
+        .all(|&v| (0.0..PALETTE.len() as f64).contains(&v))
+    {
+        z as usize
+    } else {
+        vals.iter().position(|&v| v == z).unwrap_or(0) % PALETTE.len()
+    }
+}
+
 pub fn plot(input: &Path, a: &Args, out: &Path) -> Result<()> {
     fonts();
     super::Format::of(out)?;
@@ -131,7 +193,8 @@ pub fn plot(input: &Path, a: &Args, out: &Path) -> Result<()> {
         t.col("--y", &a.y)?,
         t.col("--z", &a.z)?,
     );
-    let (xs, ys, zs) = (t.numbers(ix)?, t.numbers(iy)?, t.numbers(iz)?);
+    let ((xs, xcats), (ys, ycats)) = (coords(&t, ix), coords(&t, iy));
+    let zs = t.numbers(iz)?;
     let (ux, uy) = (distinct(&xs), distinct(&ys));
     for (u, c) in [(&ux, &a.x), (&uy, &a.y)] {
         if u.is_empty() {
@@ -182,7 +245,7 @@ pub fn plot(input: &Path, a: &Args, out: &Path) -> Result<()> {
             .into());
         }
     }
-    let (ax, ay) = (Axis::new(&a.x, &ux), Axis::new(&a.y, &uy));
+    let (ax, ay) = (Axis::new(&a.x, &ux, xcats), Axis::new(&a.y, &uy, ycats));
     let zf: Vec<f64> = cells.values().copied().filter(|z| z.is_finite()).collect();
     let uz = distinct(&zf);
     let colours =
@@ -255,6 +318,8 @@ fn draw<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, g: &Grid) -> Result<(
         .y_desc(&g.ay.label)
         .x_label_formatter(&fx)
         .y_label_formatter(&fy)
+        .x_labels(g.ax.ticks())
+        .y_labels(g.ay.ticks())
         .label_style((FONT, 14))
         .axis_desc_style((FONT, 16))
         .draw()
@@ -273,24 +338,29 @@ fn draw<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, g: &Grid) -> Result<(
     match &g.colours {
         Colours::Discrete(vals) => {
             // swatches from the top, one per value
-            let n = (vals.len() as f64).max(8.0);
+            let n = (vals.len() as f64 + 1.0).max(8.0);
             let mut lg = ChartBuilder::on(&bar)
                 .caption(&g.z_label, (FONT, 16))
                 .margin(20)
                 .margin_top(60)
                 .build_cartesian_2d(0.0..3.0, -0.5..n - 0.5)
                 .map_err(drawing)?;
-            lg.draw_series(vals.iter().enumerate().map(|(i, _)| {
+            let mut keys: Vec<(RGBColor, String)> = vals
+                .iter()
+                .map(|&v| (PALETTE[slot(vals, v)], number(v)))
+                .collect();
+            let cells = (ex.len() - 1) * (ey.len() - 1);
+            if g.cells.values().filter(|z| z.is_finite()).count() < cells {
+                keys.push((MISSING, "none".into()));
+            }
+            lg.draw_series(keys.iter().enumerate().map(|(i, (c, _))| {
                 let y = n - 1.0 - i as f64;
-                Rectangle::new(
-                    [(0.0, y - 0.4), (0.9, y + 0.4)],
-                    PALETTE[i % PALETTE.len()].filled(),
-                )
+                Rectangle::new([(0.0, y - 0.4), (0.9, y + 0.4)], c.filled())
             }))
             .map_err(drawing)?;
-            lg.draw_series(vals.iter().enumerate().map(|(i, v)| {
+            lg.draw_series(keys.iter().enumerate().map(|(i, (_, t))| {
                 Text::new(
-                    number(*v),
+                    t.clone(),
                     (1.2, n - 1.0 - i as f64 + 0.25),
                     (FONT, 16).into_font(),
                 )

@@ -10,7 +10,7 @@ use plotters::coord::Shift;
 use plotters::prelude::*;
 
 use super::data::Table;
-use super::heatmap::number;
+use super::heatmap::{number, number_in};
 use super::{drawing, fonts, FONT};
 use crate::error::InputError;
 
@@ -107,6 +107,7 @@ fn draw<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, tr: &Trace) -> Result
             .enumerate()
             .flat_map(|(i, x)| x.iter().map(move |a| i as f64 * s + a)),
     );
+    let fy = |v: &f64| number_in(*v, yhi - ylo);
     let mut ch = ChartBuilder::on(&top)
         .margin(12)
         .x_label_area_size(45)
@@ -117,7 +118,7 @@ fn draw<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, tr: &Trace) -> Result
         .x_desc("t (s)")
         .y_desc(format!("position x_i + i·s (m), s = {}", number(s)))
         .x_label_formatter(&ft)
-        .y_label_formatter(&ft)
+        .y_label_formatter(&fy)
         .label_style((FONT, 13))
         .axis_desc_style((FONT, 15))
         .draw()
@@ -140,6 +141,7 @@ fn draw<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, tr: &Trace) -> Result
         .draw()
         .map_err(drawing)?;
     let (vlo, vhi) = range(tr.v.iter().flatten().copied());
+    let fv = |v: &f64| number_in(*v, vhi - vlo);
     let mut cv = ChartBuilder::on(&bottom)
         .margin(12)
         .x_label_area_size(45)
@@ -150,7 +152,7 @@ fn draw<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, tr: &Trace) -> Result
         .x_desc("t (s)")
         .y_desc("velocity v_i (m/s)")
         .x_label_formatter(&ft)
-        .y_label_formatter(&ft)
+        .y_label_formatter(&fv)
         .label_style((FONT, 13))
         .axis_desc_style((FONT, 15))
         .draw()

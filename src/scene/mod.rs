@@ -163,7 +163,7 @@ impl Scene {
             Some(b) => b.spec()?.validate(),
             None => Err(InputError::Read {
                 path: path.to_path_buf(),
-                source: std::io::Error::new(
+                error: std::io::Error::new(
                     std::io::ErrorKind::NotFound,
                     format!(
                         "no such file, nor a built-in scene (built-ins: {})",

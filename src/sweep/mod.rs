@@ -277,7 +277,23 @@ impl Sweep {
                 }
                 let mut spec = scene_spec.clone();
                 axis::apply(&mut spec, &base, &a.param, v);
+                // A value may need another axis' value to be valid (glue "=---"
+                // with two balls launched): it is refused only when no single
+                // value of any other axis makes it valid.
+                let valid_with_another = |spec: &SceneSpec| {
+                    axes.iter().any(|(_, b)| {
+                        !std::ptr::eq(b, a)
+                            && b.values.iter().any(|w| {
+                                let mut s2 = spec.clone();
+                                axis::apply(&mut s2, &base, &b.param, w);
+                                s2.validate().is_ok()
+                            })
+                    })
+                };
                 if let Err(e) = spec.validate() {
+                    if valid_with_another(&spec) {
+                        continue;
+                    }
                     return Err(invalid(
                         *line,
                         &a.name,
