@@ -58,8 +58,9 @@ pub enum Command {
         /// Continue an interrupted run into the same --out file.
         #[arg(long)]
         resume: bool,
-        /// Run only shard K of N (1-based, contiguous id ranges), e.g. 2/4.
-        #[arg(long, value_name = "K/N")]
+        /// Run only shard K of N (1-based; contiguous id ranges balanced in
+        /// expected cost), e.g. 2/4; `slurm`: this task of a Slurm job array.
+        #[arg(long, value_name = "K/N|slurm")]
         shard: Option<String>,
         /// Worker threads for the CPU backend [default: all cores].
         #[arg(long)]
@@ -109,6 +110,40 @@ pub enum Command {
         #[arg(long, value_name = "FILE")]
         out: PathBuf,
     },
+    /// Write Slurm batch scripts that run a sweep as a job array and merge it.
+    #[command(
+        after_help = "Writes DIR/array.sbatch (one task per shard), DIR/merge.sbatch (checks that every\nshard finished, then merges) and DIR/submit.sh (submits both, the merge after the array).\n\nExamples:\n  cradle slurm examples/mass_gap.toml --shards 8 --time 00:30:00 && slurm-mass_gap/submit.sh\n  cradle slurm big.toml --shards 64 --gpus-per-task 1 --partition gpu --out big.csv\n  sbatch --array=5 slurm-big/array.sbatch     # resubmit shard 5 alone; it resumes"
+    )]
+    Slurm {
+        /// Sweep TOML file.
+        sweep: PathBuf,
+        /// Number of shards (array tasks).
+        #[arg(long)]
+        shards: u64,
+        /// Merged output CSV [default: SWEEP's name .csv in the current directory].
+        #[arg(long, value_name = "FILE")]
+        out: Option<PathBuf>,
+        /// Directory for the scripts, shard outputs and logs [default: slurm-SWEEP's name].
+        #[arg(long, value_name = "DIR")]
+        dir: Option<PathBuf>,
+        /// Slurm partition.
+        #[arg(long)]
+        partition: Option<String>,
+        /// GPUs per task (requested with --gres=gpu:G; the shards then run with --backend gpu).
+        #[arg(long, default_value_t = 0)]
+        gpus_per_task: u32,
+        /// CPUs per task (the CPU backend's threads).
+        #[arg(long)]
+        cpus_per_task: Option<u32>,
+        /// Time limit per task, Slurm syntax (e.g. 01:00:00).
+        #[arg(long)]
+        time: Option<String>,
+        /// The cradle binary the tasks run [default: this one].
+        #[arg(long, value_name = "PATH")]
+        cradle: Option<PathBuf>,
+        #[command(flatten)]
+        solver: SolverFlags,
+    },
     /// List the built-in scenes.
     Scenes,
 }
@@ -120,9 +155,19 @@ pub enum BackendChoice {
     Cpu,
 }
 
-/// Parse `K/N` with 1 ≤ K ≤ N.
+/// Parse `K/N` with 1 ≤ K ≤ N, or `slurm`: this task of a Slurm job array
+/// (K = SLURM_ARRAY_TASK_ID − SLURM_ARRAY_TASK_MIN + 1, N = SLURM_ARRAY_TASK_COUNT).
 pub fn parse_shard(s: &str) -> Result<(u64, u64), InputError> {
-    let bad = || flag("--shard", s, "K/N with integers 1 ≤ K ≤ N, e.g. 2/4");
+    if s == "slurm" {
+        return slurm_shard(|k| std::env::var(k).ok());
+    }
+    let bad = || {
+        flag(
+            "--shard",
+            s,
+            "K/N with integers 1 ≤ K ≤ N, e.g. 2/4, or slurm",
+        )
+    };
     let (k, n) = s.split_once('/').ok_or_else(bad)?;
     let (k, n): (u64, u64) = (
         k.trim().parse().map_err(|_| bad())?,
@@ -132,6 +177,38 @@ pub fn parse_shard(s: &str) -> Result<(u64, u64), InputError> {
         return Err(bad());
     }
     Ok((k, n))
+}
+
+/// `--shard slurm` from the job-array variables `env` gives.
+pub fn slurm_shard(env: impl Fn(&str) -> Option<String>) -> Result<(u64, u64), InputError> {
+    let var = |k: &str| -> Result<u64, InputError> {
+        let v = env(k).ok_or_else(|| {
+            flag(
+                "--shard",
+                "slurm",
+                &format!("needs {k}: run it as a task of a Slurm job array (sbatch --array=1-N), or give K/N"),
+            )
+        })?;
+        v.trim()
+            .parse()
+            .map_err(|_| flag("--shard", "slurm", &format!("{k}={v:?} is not an integer")))
+    };
+    let (id, count) = (var("SLURM_ARRAY_TASK_ID")?, var("SLURM_ARRAY_TASK_COUNT")?);
+    let min = match env("SLURM_ARRAY_TASK_MIN") {
+        Some(_) => var("SLURM_ARRAY_TASK_MIN")?,
+        None => 1,
+    };
+    let k = (id + 1)
+        .checked_sub(min)
+        .filter(|k| (1..=count).contains(k));
+    match k {
+        Some(k) => Ok((k, count)),
+        None => Err(flag(
+            "--shard",
+            "slurm",
+            &format!("task {id} of an array of {count} from {min}: outside 1..={count}"),
+        )),
+    }
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -160,6 +237,22 @@ pub struct SolverFlags {
 }
 
 impl SolverFlags {
+    /// The flags as command-line arguments again (for generated scripts).
+    pub fn args(&self) -> Vec<String> {
+        let mut a = vec![];
+        for (k, v) in [
+            ("--precision", self.precision.clone()),
+            ("--tolerance", self.tolerance.map(|t| t.to_string())),
+            ("--method", self.method.clone()),
+            ("--model", self.model.clone()),
+        ] {
+            if let Some(v) = v {
+                a.extend([k.to_string(), v]);
+            }
+        }
+        a
+    }
+
     pub fn overrides(&self) -> Result<Overrides, InputError> {
         let precision = match &self.precision {
             None => None,

@@ -14,6 +14,7 @@ pub mod error;
 pub mod output;
 pub mod plot;
 pub mod scene;
+pub mod slurm;
 pub mod sweep;
 
 pub use error::InputError;

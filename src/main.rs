@@ -185,6 +185,59 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             eprintln!("cradle: wrote {}", out.display());
             Ok(())
         }
+        Command::Slurm {
+            sweep,
+            shards,
+            out,
+            dir,
+            partition,
+            gpus_per_task,
+            cpus_per_task,
+            time,
+            cradle,
+            solver,
+        } => {
+            // Check everything now, not on the cluster.
+            let spec = Sweep::load(&sweep)?;
+            let overrides = solver.overrides()?;
+            Solver::resolve(&spec.base, &overrides)?;
+            if shards == 0 || shards > spec.total {
+                return Err(flag(
+                    "--shards",
+                    &shards.to_string(),
+                    &format!("1 ..= {} (the sweep's scenes)", spec.total),
+                )
+                .into());
+            }
+            let stem = sweep
+                .file_stem()
+                .unwrap_or_default()
+                .to_string_lossy()
+                .to_string();
+            let plan = hertz_cradle::slurm::Plan {
+                out: out.unwrap_or_else(|| format!("{stem}.csv").into()),
+                dir: dir.unwrap_or_else(|| format!("slurm-{stem}").into()),
+                sweep,
+                shards,
+                partition,
+                gpus_per_task,
+                cpus_per_task,
+                time,
+                cradle: match cradle {
+                    Some(c) => c,
+                    None => std::env::current_exe()?,
+                },
+                flags: solver.args(),
+            };
+            for p in hertz_cradle::slurm::write(&plan)? {
+                eprintln!("cradle: wrote {}", p.display());
+            }
+            eprintln!(
+                "cradle: submit with {}",
+                plan.dir.join("submit.sh").display()
+            );
+            Ok(())
+        }
         Command::Scenes => {
             let mut out = std::io::stdout().lock();
             for b in builtin::BUILTINS {

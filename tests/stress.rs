@@ -159,6 +159,39 @@ fn envelope_is_ok_or_says_why_and_f32_follows_f64() {
 }
 
 #[test]
+fn long_pendulum_run_of_ten_thousand_contacts_stays_sound() {
+    // A 5-ball cradle on 5 cm strings swinging for 270 s: about 600 swings and
+    // 12,000 contacts, in f64 and f32 (tolerance 1e-4, split over the events).
+    let text = "balls = 5\n[launch]\nballs = 1\nheight = 0.005\n[pendulum]\nlength = 0.05\n[stop]\nduration = 270.0";
+    let s = scene(text);
+    let jobs: Vec<Job> = [Precision::F64, Precision::F32]
+        .into_iter()
+        .map(|p| job(&s, p, 1e-4))
+        .collect();
+    let out = Cpu.run(&jobs).unwrap();
+    for (o, p) in out.iter().zip(["f64", "f32"]) {
+        assert_eq!(o.status, Status::Ok, "{p}: {o:?}");
+        assert!(o.contacts >= 10_000, "{p}: {} contacts", o.contacts);
+        assert!(o.v.iter().chain(&o.x).all(|x| x.is_finite()), "{p}: {o:?}");
+        // no damping: energy conserved over 10^4 contacts and 600 swings
+        assert!(
+            o.energy_error <= 1e-5,
+            "{p}: energy error {:e}",
+            o.energy_error
+        );
+        eprintln!(
+            "long pendulum {p}: {} contacts, {} steps, energy error {:.1e}",
+            o.contacts, o.steps, o.energy_error
+        );
+    }
+    eprintln!(
+        "long pendulum f32 vs f64: energy left differs by {:.1e}, x_4 by {:.1e} m",
+        (out[1].energy_left - out[0].energy_left).abs(),
+        (out[1].x[4] - out[0].x[4]).abs()
+    );
+}
+
+#[test]
 fn slow_free_flight_costs_no_steps() {
     // A ball crossing 1 mm at 1e-4 m/s: ten seconds of flight, zero steps.
     let wide = simulate(&scene("balls = 2\ngap = 1e-3\nvelocity = [1e-4, 0]"));

@@ -317,3 +317,233 @@ fn bad_sweep_flags_exit_2_and_leave_no_output() {
         );
     }
 }
+
+#[test]
+fn shards_are_balanced_in_cost_not_count() {
+    use hertz_cradle::engine::Overrides;
+    // Chains of 2 … 48 balls: the last scenes cost far more than the first.
+    let s = sweep_text(
+        "[scene]\nballs = 2\n[scene.launch]\nvelocity = 1.0\n[[axis]]\nparam = \"balls\"\nvalues = [2, 4, 8, 16, 24, 32, 48]\n[[axis]]\nparam = \"launch.velocity\"\nlinspace = [0.5, 1.5, 6]\n",
+    );
+    let s = s.unwrap();
+    let o = Overrides::default();
+    let ranges: Vec<(u64, u64)> = (1..=3).map(|k| s.shard_range(Some((k, 3)), &o)).collect();
+    assert_eq!(ranges[0].0, 0);
+    assert_eq!(ranges[2].1, s.total);
+    assert!(ranges.windows(2).all(|w| w[0].1 == w[1].0), "{ranges:?}");
+    // the measured work (steps × bodies) of each shard
+    let work = |(lo, hi): (u64, u64)| -> f64 {
+        (lo..hi)
+            .map(|id| {
+                let scene = s.scene(id).unwrap();
+                let ch = hertz_cradle::engine::Chain::from_scene(&scene).unwrap();
+                let solver = hertz_cradle::engine::Solver::resolve(&scene, &o).unwrap();
+                let out = hertz_cradle::engine::simulate_chain(
+                    &ch,
+                    &solver,
+                    &mut hertz_cradle::engine::Silent,
+                );
+                out.steps as f64 * ch.n_bodies() as f64
+            })
+            .sum()
+    };
+    let w: Vec<f64> = ranges.iter().map(|&r| work(r)).collect();
+    let count: Vec<f64> = (0..3)
+        .map(|k| work((k * s.total / 3, (k + 1) * s.total / 3)))
+        .collect();
+    let spread = |w: &[f64]| {
+        w.iter().cloned().fold(0.0, f64::max) / w.iter().cloned().fold(f64::MAX, f64::min)
+    };
+    eprintln!(
+        "work per shard: by cost {w:?} (max/min {:.2}), by count {count:?} (max/min {:.1})",
+        spread(&w),
+        spread(&count)
+    );
+    // 42 scenes of very different cost cannot split evenly into contiguous thirds
+    assert!(spread(&w) < 3.0, "{w:?}");
+    assert!(
+        spread(&count) > 5.0,
+        "the test sweep must be unbalanced by count: {count:?}"
+    );
+}
+
+#[test]
+fn shard_slurm_reads_the_job_array() {
+    use hertz_cradle::cli::slurm_shard;
+    let env = |vars: &'static [(&'static str, &'static str)]| {
+        move |k: &str| {
+            vars.iter()
+                .find(|(n, _)| *n == k)
+                .map(|(_, v)| v.to_string())
+        }
+    };
+    let ok = slurm_shard(env(&[
+        ("SLURM_ARRAY_TASK_ID", "3"),
+        ("SLURM_ARRAY_TASK_COUNT", "4"),
+        ("SLURM_ARRAY_TASK_MIN", "1"),
+    ]));
+    assert_eq!(ok.unwrap(), (3, 4));
+    // arrays numbered from 0
+    let ok = slurm_shard(env(&[
+        ("SLURM_ARRAY_TASK_ID", "0"),
+        ("SLURM_ARRAY_TASK_COUNT", "4"),
+        ("SLURM_ARRAY_TASK_MIN", "0"),
+    ]));
+    assert_eq!(ok.unwrap(), (1, 4));
+    let e = slurm_shard(env(&[("SLURM_ARRAY_TASK_COUNT", "4")]))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("SLURM_ARRAY_TASK_ID") && e.contains("K/N"),
+        "{e}"
+    );
+    let e = slurm_shard(env(&[
+        ("SLURM_ARRAY_TASK_ID", "9"),
+        ("SLURM_ARRAY_TASK_COUNT", "4"),
+    ]))
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("outside"), "{e}");
+    // the CLI without a job array: exit 2, no output
+    let dir = tempfile::tempdir().unwrap();
+    let sw = write_sweep(dir.path(), 2, 2);
+    let out = dir.path().join("o.csv");
+    let r = cradle()
+        .args([
+            "sweep",
+            sw.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--shard",
+            "slurm",
+        ])
+        .env_remove("SLURM_ARRAY_TASK_ID")
+        .output()
+        .unwrap();
+    assert_eq!(r.status.code(), Some(2));
+    assert!(!out.exists());
+}
+
+/// Slurm commands and daemons present (Debian's slurm-wlm and munge)?
+fn slurm_installed() -> bool {
+    ["sbatch", "slurmctld", "slurmd", "munged"].iter().all(|c| {
+        Std::new("sh")
+            .args(["-c", &format!("command -v {c} || test -x /usr/sbin/{c}")])
+            .output()
+            .is_ok_and(|o| o.status.success())
+    })
+}
+
+/// Wait until none of `jobs` is queued or running.
+fn wait_for(jobs: &[&str]) {
+    let t0 = std::time::Instant::now();
+    loop {
+        let q = Std::new("squeue")
+            .args(["-h", "-j", &jobs.join(",")])
+            .output()
+            .unwrap();
+        if String::from_utf8_lossy(&q.stdout).trim().is_empty() {
+            return;
+        }
+        assert!(
+            t0.elapsed() < Duration::from_secs(300),
+            "Slurm jobs {jobs:?} still queued after 300 s"
+        );
+        std::thread::sleep(Duration::from_millis(300));
+    }
+}
+
+#[test]
+fn slurm_job_array_merges_to_the_unsharded_run() {
+    if !slurm_installed() {
+        if std::env::var("CRADLE_REQUIRE_SLURM").as_deref() == Ok("1") {
+            panic!("CRADLE_REQUIRE_SLURM=1 but Slurm is not installed (apt-get install slurm-wlm munge)");
+        }
+        eprintln!("SKIPPED: Slurm is not installed (apt-get install slurm-wlm munge; CRADLE_REQUIRE_SLURM=1 makes this a failure)");
+        return;
+    }
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let up = Std::new(root.join("scripts/slurm_local.sh"))
+        .arg("start")
+        .output()
+        .unwrap();
+    assert!(
+        up.status.success(),
+        "slurm_local.sh start: {}",
+        String::from_utf8_lossy(&up.stderr)
+    );
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let sw = write_sweep(d, 6, 5);
+    let s = sw.to_str().unwrap();
+    let p = |n: &str| d.join(n).display().to_string();
+    sweep(&[s, "--out", &p("full.csv"), "--backend", "cpu"]);
+    let exe = env!("CARGO_BIN_EXE_cradle");
+    cradle()
+        .args([
+            "slurm",
+            s,
+            "--shards",
+            "4",
+            "--out",
+            &p("merged.csv"),
+            "--dir",
+            &p("job"),
+            "--cradle",
+            exe,
+        ])
+        .assert()
+        .success();
+    let sub = Std::new(d.join("job/submit.sh")).output().unwrap();
+    assert!(
+        sub.status.success(),
+        "submit: {}",
+        String::from_utf8_lossy(&sub.stderr)
+    );
+    let ids = String::from_utf8(sub.stdout).unwrap();
+    let ids: Vec<&str> = ids.split_whitespace().collect();
+    assert_eq!(ids.len(), 2, "{ids:?}");
+    wait_for(&ids);
+    let merged = fs::read(p("merged.csv")).unwrap_or_else(|e| {
+        panic!(
+            "no merged output ({e}); merge log: {}",
+            fs::read_to_string(d.join("job/logs/merge.out")).unwrap_or_default()
+        )
+    });
+    assert_eq!(
+        fs::read(p("full.csv")).unwrap(),
+        merged,
+        "merged Slurm output differs from the unsharded run"
+    );
+    // A lost shard: the merge says which and how to resubmit; shard 2 alone,
+    // then the merge again, gives the same bytes.
+    fs::remove_file(d.join("job/parts/shard-2-of-4.csv")).unwrap();
+    fs::remove_file(p("merged.csv")).unwrap();
+    let m = Std::new("sbatch")
+        .args(["--parsable", "--wait", &p("job/merge.sbatch")])
+        .output()
+        .unwrap();
+    assert!(!m.status.success());
+    let log = fs::read_to_string(d.join("job/logs/merge.out")).unwrap();
+    assert!(
+        log.contains("shards not complete: 2") && log.contains("sbatch --array=K"),
+        "{log}"
+    );
+    for script in [["--array=2", "job/array.sbatch"], ["", "job/merge.sbatch"]] {
+        let mut c = Std::new("sbatch");
+        c.args(["--parsable", "--wait"]);
+        if !script[0].is_empty() {
+            c.arg(script[0]);
+        }
+        let r = c.arg(p(script[1])).output().unwrap();
+        assert!(
+            r.status.success(),
+            "{script:?}: {}",
+            String::from_utf8_lossy(&r.stderr)
+        );
+    }
+    assert_eq!(
+        fs::read(p("full.csv")).unwrap(),
+        fs::read(p("merged.csv")).unwrap()
+    );
+}

@@ -210,6 +210,31 @@ impl Solver {
         d / ((2f64.powf(q) - 1.0) * v_in)
     }
 
+    /// Expected cost of running `chain` (loop iterations, roughly): steps per
+    /// contact event × events × substeps × bodies, plus a pendulum's free
+    /// flight. Only its proportions matter (shard balancing).
+    pub fn expected_cost(&self, chain: &Chain) -> f64 {
+        if self.model != Model::Hertz {
+            return 1.0;
+        }
+        let (Some(plan), Some(tc)) = (self.step_plan(chain), chain.time_scale()) else {
+            return 1.0;
+        };
+        let nb = chain.n_bodies() as f64;
+        let per_event = tc / plan.h;
+        let events = if chain.is_pendulum() {
+            self.events(chain)
+        } else {
+            nb - 1.0
+        };
+        let free = if chain.is_pendulum() {
+            self.max_time / plan.h_free
+        } else {
+            0.0
+        };
+        1.0 + (per_event * events + free) * plan.weights.len() as f64 * nb
+    }
+
     /// How this chain is stepped; `None` when nothing can collide.
     pub fn step_plan(&self, chain: &Chain) -> Option<StepPlan> {
         let tc = chain.time_scale()?;

@@ -37,18 +37,59 @@ pub struct Summary {
     pub already_complete: bool,
 }
 
-/// The id range [lo, hi) of shard k of n (1-based).
-pub fn shard_range(total: u64, shard: Option<(u64, u64)>) -> (u64, u64) {
-    match shard {
-        None => (0, total),
-        Some((k, n)) => {
-            let at = |i: u64| ((i as u128 * total as u128) / n as u128) as u64;
-            (at(k - 1), at(k))
-        }
-    }
-}
+/// Scenes sampled to estimate the cost profile of a sweep for sharding.
+pub const COST_SAMPLES: u64 = 65_536;
 
 impl Sweep {
+    /// The id range [lo, hi) of shard k of n (1-based): contiguous ids,
+    /// balanced in expected cost (scene costs differ by orders of magnitude
+    /// across a sweep). The cumulative cost is estimated from every scene, or
+    /// from [`COST_SAMPLES`] evenly spaced ones (linear in between), with
+    /// [`Solver::expected_cost`]; every shard computes the same boundaries.
+    pub fn shard_range(&self, shard: Option<(u64, u64)>, o: &Overrides) -> (u64, u64) {
+        let total = self.total;
+        let Some((k, n)) = shard else {
+            return (0, total);
+        };
+        let samples = total.min(COST_SAMPLES);
+        let ids: Vec<u64> = (0..samples)
+            .map(|j| ((j as u128 * total as u128) / samples as u128) as u64)
+            .collect();
+        let costs: Vec<f64> = ids
+            .par_iter()
+            .map(|&id| match self.job(id, o) {
+                Ok(Job::Run { chain, solver }) => solver.expected_cost(&chain),
+                _ => 1.0,
+            })
+            .collect();
+        // Sample j stands for ids [ids[j], ids[j+1]): cumulative cost at its start.
+        let mut cum = Vec::with_capacity(ids.len() + 1);
+        let mut acc = 0.0;
+        cum.push(0.0);
+        for (j, c) in costs.iter().enumerate() {
+            let next = ids.get(j + 1).copied().unwrap_or(total);
+            acc += c * (next - ids[j]) as f64;
+            cum.push(acc);
+        }
+        // The first id where the cumulative cost reaches i/n of the total.
+        let at = |i: u64| -> u64 {
+            if i == 0 {
+                return 0;
+            }
+            if i == n {
+                return total;
+            }
+            let target = acc * i as f64 / n as f64;
+            let j = cum.partition_point(|&c| c < target).clamp(1, ids.len()) - 1;
+            let end = ids.get(j + 1).copied().unwrap_or(total);
+            let per = costs[j].max(f64::MIN_POSITIVE);
+            let id = ids[j] + ((target - cum[j]) / per).ceil().max(0.0) as u64;
+            id.min(end)
+        };
+        let (lo, hi) = (at(k - 1), at(k));
+        (lo, hi.max(lo))
+    }
+
     /// The job for scene `id`: its chain and solver, or why it is invalid.
     pub fn job(&self, id: u64, o: &Overrides) -> Result<Job, InputError> {
         match self.scene(id) {
@@ -71,7 +112,7 @@ impl Sweep {
 }
 
 pub fn run(sweep: &Sweep, opts: &Options, backend: &dyn Backend) -> Result<Summary> {
-    let (lo, hi) = shard_range(sweep.total, opts.shard);
+    let (lo, hi) = sweep.shard_range(opts.shard, &opts.overrides);
     // Everything a resumed run must share with the first, in one string.
     let fingerprint = serde_json::to_string(&serde_json::json!({
         "sweep": sweep, "shard": opts.shard, "overrides": format!("{:?}", opts.overrides),

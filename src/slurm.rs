@@ -1,0 +1,187 @@
+//! `cradle slurm`: a sweep as a Slurm job array. Writes three scripts into a
+//! directory, every path in them absolute:
+//!
+//! - `array.sbatch`: one task per shard, `cradle sweep … --shard K/N --resume`
+//!   into `parts/shard-K-of-N.csv` (a task that is resubmitted continues where
+//!   it stopped; one that finished is not redone);
+//! - `merge.sbatch`: runs after every task has ended (`afterany`), checks that
+//!   every shard is complete (naming the missing ones and how to resubmit
+//!   them) and `cradle merge`s them, which refuses missing or repeated ids;
+//! - `submit.sh`: submits both, the merge depending on the array.
+//!
+//! The shard is given as `$SLURM_ARRAY_TASK_ID/N` rather than `slurm`, so that
+//! `sbatch --array=K array.sbatch` reruns shard K alone with the same layout.
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result};
+
+pub struct Plan {
+    pub sweep: PathBuf,
+    pub shards: u64,
+    pub out: PathBuf,
+    pub dir: PathBuf,
+    pub partition: Option<String>,
+    pub gpus_per_task: u32,
+    pub cpus_per_task: Option<u32>,
+    pub time: Option<String>,
+    pub cradle: PathBuf,
+    /// Solver flags passed to every shard.
+    pub flags: Vec<String>,
+}
+
+/// A word for a POSIX shell, single-quoted.
+pub fn quote(s: &str) -> String {
+    format!("'{}'", s.replace('\'', r"'\''"))
+}
+
+fn q(p: &Path) -> String {
+    quote(&p.display().to_string())
+}
+
+fn absolute(p: &Path) -> Result<PathBuf> {
+    std::path::absolute(p).with_context(|| format!("cannot resolve {}", p.display()))
+}
+
+/// The three scripts' texts: (array.sbatch, merge.sbatch, submit.sh).
+pub fn scripts(p: &Plan) -> Result<(String, String, String)> {
+    let (dir, sweep, out, cradle) = (
+        absolute(&p.dir)?,
+        absolute(&p.sweep)?,
+        absolute(&p.out)?,
+        absolute(&p.cradle)?,
+    );
+    let n = p.shards;
+    let stem = sweep
+        .file_stem()
+        .unwrap_or_default()
+        .to_string_lossy()
+        .to_string();
+    let part = |k: &str| dir.join("parts").join(format!("shard-{k}-of-{n}.csv"));
+    let mut a = String::new();
+    writeln!(a, "#!/bin/bash")?;
+    writeln!(
+        a,
+        "# A cradle sweep as a Slurm job array: shard K of {n} per task."
+    )?;
+    writeln!(
+        a,
+        "# Resubmit one shard alone: sbatch --array=K {}",
+        q(&dir.join("array.sbatch"))
+    )?;
+    writeln!(a, "#SBATCH --job-name={}", quote(&format!("cradle-{stem}")))?;
+    writeln!(a, "#SBATCH --array=1-{n}")?;
+    writeln!(
+        a,
+        "#SBATCH --output={}",
+        q(&dir.join("logs").join("shard-%a.out"))
+    )?;
+    if let Some(part) = &p.partition {
+        writeln!(a, "#SBATCH --partition={}", quote(part))?;
+    }
+    if let Some(t) = &p.time {
+        writeln!(a, "#SBATCH --time={}", quote(t))?;
+    }
+    if p.gpus_per_task > 0 {
+        writeln!(a, "#SBATCH --gres=gpu:{}", p.gpus_per_task)?;
+    }
+    if let Some(c) = p.cpus_per_task {
+        writeln!(a, "#SBATCH --cpus-per-task={c}")?;
+    }
+    writeln!(a, "set -euo pipefail")?;
+    writeln!(a, "K=\"$SLURM_ARRAY_TASK_ID\"")?;
+    let backend = if p.gpus_per_task > 0 { "gpu" } else { "auto" };
+    let threads = p
+        .cpus_per_task
+        .map_or(String::new(), |c| format!(" --threads {c}"));
+    let flags: String = p.flags.iter().map(|f| format!(" {}", quote(f))).collect();
+    writeln!(
+        a,
+        "exec {} sweep {} --out {}\"$K\"-of-{n}.csv --shard \"$K\"/{n} --resume --backend {backend}{threads}{flags}",
+        q(&cradle),
+        q(&sweep),
+        q(&dir.join("parts").join("shard-"))
+    )?;
+
+    let mut m = String::new();
+    writeln!(m, "#!/bin/bash")?;
+    writeln!(m, "# Merge the {n} shards once every array task has ended.")?;
+    writeln!(
+        m,
+        "#SBATCH --job-name={}",
+        quote(&format!("cradle-{stem}-merge"))
+    )?;
+    writeln!(
+        m,
+        "#SBATCH --output={}",
+        q(&dir.join("logs").join("merge.out"))
+    )?;
+    if let Some(part) = &p.partition {
+        writeln!(m, "#SBATCH --partition={}", quote(part))?;
+    }
+    writeln!(m, "set -euo pipefail")?;
+    writeln!(m, "missing=()")?;
+    writeln!(m, "for k in $(seq 1 {n}); do")?;
+    writeln!(
+        m,
+        "  [ -f {}\"$k\"-of-{n}.csv ] || missing+=(\"$k\")",
+        q(&dir.join("parts").join("shard-"))
+    )?;
+    writeln!(m, "done")?;
+    writeln!(m, "if [ ${{#missing[@]}} -gt 0 ]; then")?;
+    writeln!(
+        m,
+        "  echo \"cradle: shards not complete: ${{missing[*]}}. Resubmit each (it resumes): sbatch --array=K {}; then: sbatch {}\" >&2",
+        dir.join("array.sbatch").display(),
+        dir.join("merge.sbatch").display()
+    )?;
+    writeln!(m, "  exit 1")?;
+    writeln!(m, "fi")?;
+    let parts: String = (1..=n)
+        .map(|k| format!(" {}", q(&part(&k.to_string()))))
+        .collect();
+    writeln!(m, "exec {} merge{parts} --out {}", q(&cradle), q(&out))?;
+
+    let mut s = String::new();
+    writeln!(s, "#!/bin/bash")?;
+    writeln!(
+        s,
+        "# Submit the sweep {} as {n} array tasks, then the merge into {}.",
+        sweep.display(),
+        out.display()
+    )?;
+    writeln!(s, "set -euo pipefail")?;
+    writeln!(
+        s,
+        "array=$(sbatch --parsable {})",
+        q(&dir.join("array.sbatch"))
+    )?;
+    writeln!(s, "array=${{array%%;*}}")?;
+    writeln!(
+        s,
+        "merge=$(sbatch --parsable --dependency=afterany:\"$array\" {})",
+        q(&dir.join("merge.sbatch"))
+    )?;
+    writeln!(s, "merge=${{merge%%;*}}")?;
+    writeln!(s, "echo \"$array $merge\"")?;
+    Ok((a, m, s))
+}
+
+/// Write the scripts (and the `parts/`, `logs/` directories); returns their paths.
+pub fn write(p: &Plan) -> Result<Vec<PathBuf>> {
+    use std::os::unix::fs::PermissionsExt;
+    for d in ["parts", "logs"] {
+        std::fs::create_dir_all(p.dir.join(d))
+            .with_context(|| format!("cannot create {}", p.dir.join(d).display()))?;
+    }
+    let (a, m, s) = scripts(p)?;
+    let mut paths = vec![];
+    for (name, text) in [("array.sbatch", a), ("merge.sbatch", m), ("submit.sh", s)] {
+        let path = p.dir.join(name);
+        std::fs::write(&path, text).with_context(|| format!("cannot write {}", path.display()))?;
+        std::fs::set_permissions(&path, std::fs::Permissions::from_mode(0o755))?;
+        paths.push(path);
+    }
+    Ok(paths)
+}
