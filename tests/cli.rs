@@ -64,7 +64,7 @@ fn run_prints_a_table_and_csv_row() {
     let mut r = csv::Reader::from_reader(out.as_slice());
     let h: Vec<String> = r.headers().unwrap().iter().map(String::from).collect();
     assert_eq!(
-        &h[..13],
+        &h[..15],
         [
             "id",
             "status",
@@ -78,7 +78,9 @@ fn run_prints_a_table_and_csv_row() {
             "momentum_error",
             "max_overlap_m",
             "steps",
-            "t_contact"
+            "contacts",
+            "energy_left",
+            "energy_last"
         ]
     );
     let rows: Vec<csv::StringRecord> = r.records().map(|x| x.unwrap()).collect();
