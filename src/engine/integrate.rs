@@ -90,6 +90,7 @@ pub struct Run {
     pub max_overlap: f64,
     pub max_overlap_ratio: f64,
     /// Final displacement of each body (m): body 0's, then x_{b+1} = x_b − gap_b − δ_b.
+    /// NaN for a free line run without an observer (not tracked).
     pub x: Vec<f64>,
     /// Contact onsets (a contact open at the start of a step and closed at its end).
     pub contacts: u64,
@@ -183,20 +184,27 @@ fn kick<R: Real>(k: &Consts<R>, s: &mut State<R>, hh: R) {
         }
     }
     let inv_m = &k.inv_m;
-    let f = &s.f;
-    let mut inc = [R::zero(); MAX_BALLS];
-    inc[0] = -(hh * f[0] * inv_m[0]);
-    for b in 1..nb - 1 {
-        inc[b] = hh * (f[b - 1] - f[b]) * inv_m[b];
-    }
-    inc[nb - 1] = hh * f[nb - 2] * inv_m[nb - 1];
-    for b in 0..nb {
-        let i = if k.pend {
-            inc[b] + hh * s.acc[b]
-        } else {
-            inc[b]
-        };
-        add(&mut s.v, &mut s.cv, b, i);
+    if k.pend {
+        add(
+            &mut s.v,
+            &mut s.cv,
+            0,
+            -(hh * s.f[0] * inv_m[0]) + hh * s.acc[0],
+        );
+        for b in 1..nb - 1 {
+            let inc = hh * (s.f[b - 1] - s.f[b]) * inv_m[b] + hh * s.acc[b];
+            add(&mut s.v, &mut s.cv, b, inc);
+        }
+        let inc = hh * s.f[nb - 2] * inv_m[nb - 1] + hh * s.acc[nb - 1];
+        add(&mut s.v, &mut s.cv, nb - 1, inc);
+    } else {
+        add(&mut s.v, &mut s.cv, 0, -(hh * s.f[0] * inv_m[0]));
+        for b in 1..nb - 1 {
+            let inc = hh * (s.f[b - 1] - s.f[b]) * inv_m[b];
+            add(&mut s.v, &mut s.cv, b, inc);
+        }
+        let inc = hh * s.f[nb - 2] * inv_m[nb - 1];
+        add(&mut s.v, &mut s.cv, nb - 1, inc);
     }
 }
 
@@ -324,6 +332,22 @@ pub fn integrate<R: Real, O: Observer>(
     lim: &Limits,
     obs: &mut O,
 ) -> Run {
+    // Work a scene does not need is not compiled in: an elastic free line
+    // runs a variant without the gravity, damping and drag terms.
+    if ch.is_pendulum() || ch.is_dissipative() {
+        integrate_terms::<R, O, true>(ch, plan, lim, obs)
+    } else {
+        integrate_terms::<R, O, false>(ch, plan, lim, obs)
+    }
+}
+
+/// [`integrate`] with (`TERMS`) or without the pendulum and damping terms.
+fn integrate_terms<R: Real, O: Observer, const TERMS: bool>(
+    ch: &Chain,
+    plan: &StepPlan,
+    lim: &Limits,
+    obs: &mut O,
+) -> Run {
     let nb = ch.n_bodies();
     let nc = nb - 1;
     let zero = R::zero();
@@ -344,9 +368,9 @@ pub fn integrate<R: Real, O: Observer>(
         nc,
         inv_m: [zero; MAX_BALLS],
         gap: [zero; MAX_BALLS],
-        pend: ch.is_pendulum(),
-        damped: ch.damping_a > 0.0,
-        dragged: ch.air_drag > 0.0,
+        pend: TERMS && ch.is_pendulum(),
+        damped: TERMS && ch.damping_a > 0.0,
+        dragged: TERMS && ch.air_drag > 0.0,
         g: R::of(ch.gravity),
         inv_l: R::of(if ch.is_pendulum() {
             1.0 / ch.length
@@ -374,6 +398,9 @@ pub fn integrate<R: Real, O: Observer>(
         k
     };
     let pend = kn.pend;
+    // Body 0's displacement matters to gravity and to an observer; a free line
+    // in a sweep does without (its displacements are not reported).
+    let track_x = pend || O::ACTIVE;
     let hr = R::of(plan.h);
     let h_free = R::of(plan.h_free);
     let h_min = R::of(plan.h_min);
@@ -427,7 +454,9 @@ pub fn integrate<R: Real, O: Observer>(
                 for c in 0..nc {
                     s.d[c] = s.d[c] + (s.v[c] - s.v[c + 1]) * tau;
                 }
-                s.x0[0] = s.x0[0] + s.v[0] * tau;
+                if track_x {
+                    s.x0[0] = s.x0[0] + s.v[0] * tau;
+                }
                 t += tau64;
                 observe(t, &s, obs);
             }
@@ -495,7 +524,9 @@ pub fn integrate<R: Real, O: Observer>(
             for c in 0..nc {
                 add(&mut s.d, &mut s.cd, c, ws * (s.v[c] - s.v[c + 1]));
             }
-            add(&mut s.x0, &mut s.cx0, 0, ws * s.v[0]);
+            if track_x {
+                add(&mut s.x0, &mut s.cx0, 0, ws * s.v[0]);
+            }
             closed = forces(&kn, &kc, &mut s);
             kick(&kn, &mut s, hh);
         }
@@ -503,27 +534,22 @@ pub fn integrate<R: Real, O: Observer>(
         let t_start = t;
         t = if last { lim.max_time } else { t + h };
         steps += 1;
+        // Onsets, overlaps, releases (located inside the step by linear
+        // interpolation of δ; graded methods land on them anyway).
         for c in 0..nc {
-            if s.d0[c] <= zero && s.d[c] > zero {
-                contacts += 1;
-                t_first.get_or_insert(t_start);
-            }
-        }
-        if closed {
-            for c in 0..nc {
-                let d = s.d[c].to64();
+            let (d0, d1) = (s.d0[c], s.d[c]);
+            if d1 > zero {
+                if d0 <= zero {
+                    contacts += 1;
+                    t_first.get_or_insert(t_start);
+                }
+                let d = d1.to64();
                 if d > max_ov {
                     max_ov = d;
                 }
                 max_ratio = max_ratio.max(d * inv_r[c]);
-            }
-        }
-        // Locate each release inside the step by linear interpolation of δ
-        // (graded methods land on it anyway).
-        for c in 0..nc {
-            let d1 = s.d[c].to64();
-            let d0 = s.d0[c].to64();
-            if d0 > 0.0 && d1 <= 0.0 {
+            } else if d0 > zero {
+                let (d0, d1) = (d0.to64(), d1.to64());
                 let tr = t_start + h * d0 / (d0 - d1);
                 t_release = Some(t_release.map_or(tr, |x: f64| x.max(tr)));
             }
@@ -538,9 +564,16 @@ pub fn integrate<R: Real, O: Observer>(
     };
     let v: Vec<f64> = s.v[..nb].iter().map(|v| v.to64()).collect();
     let overlap: Vec<f64> = s.d[..nc].iter().map(|d| d.to64()).collect();
-    let x = ch.positions(s.x0[0].to64(), &overlap);
+    let x = if track_x {
+        ch.positions(s.x0[0].to64(), &overlap)
+    } else {
+        vec![f64::NAN; nb]
+    };
     let settled = matches!(end, End::Settled | End::Duration);
-    let end = if settled && (v.iter().chain(&overlap).chain(&x).any(|x| !x.is_finite())) {
+    let end = if settled
+        && (v.iter().chain(&overlap).any(|x| !x.is_finite())
+            || track_x && x.iter().any(|x| !x.is_finite()))
+    {
         End::NonFinite
     } else {
         end
