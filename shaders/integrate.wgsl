@@ -19,6 +19,9 @@ alias real = f32;
 const COMPENSATED = true;
 
 const MAX_BALLS: u32 = 64u;
+// false: a pipeline for elastic free lines only, without the pendulum, damping
+// and drag terms (engine::integrate's TERMS; set by the host per batch).
+override TERMS: bool = true;
 // Why a run stopped (engine::End).
 const END_SETTLED: u32 = 0u;
 const END_STEP_CAP: u32 = 1u;
@@ -179,19 +182,18 @@ fn kick(hh: real) {
             cv[b] = cv[b] * q;
         }
     }
-    for (var b = 0u; b < nb; b++) {
-        var inc: real;
-        if (b == 0u) {
-            inc = -(hh * f[0] * inv_m[0]);
-        } else if (b == nb - 1u) {
-            inc = hh * f[nb - 2u] * inv_m[nb - 1u];
-        } else {
-            inc = hh * (f[b - 1u] - f[b]) * inv_m[b];
+    if (pend) {
+        add(&v, &cv, 0u, -(hh * f[0] * inv_m[0]) + hh * acc[0]);
+        for (var b = 1u; b < nb - 1u; b++) {
+            add(&v, &cv, b, hh * (f[b - 1u] - f[b]) * inv_m[b] + hh * acc[b]);
         }
-        if (pend) {
-            inc = inc + hh * acc[b];
+        add(&v, &cv, nb - 1u, hh * f[nb - 2u] * inv_m[nb - 1u] + hh * acc[nb - 1u]);
+    } else {
+        add(&v, &cv, 0u, -(hh * f[0] * inv_m[0]));
+        for (var b = 1u; b < nb - 1u; b++) {
+            add(&v, &cv, b, hh * (f[b - 1u] - f[b]) * inv_m[b]);
         }
-        add(&v, &cv, b, inc);
+        add(&v, &cv, nb - 1u, hh * f[nb - 2u] * inv_m[nb - 1u]);
     }
 }
 
@@ -274,9 +276,9 @@ fn integrate(i: u32) {
     inv_l = params[p0 + 8u];
     drag = params[p0 + 9u];
     let a_e = params[p0 + 10u];
-    pend = (hd.flags & FLAG_PENDULUM) != 0u;
-    damped = (hd.flags & FLAG_DAMPED) != 0u;
-    dragged = (hd.flags & FLAG_DRAG) != 0u;
+    pend = TERMS && (hd.flags & FLAG_PENDULUM) != 0u;
+    damped = TERMS && (hd.flags & FLAG_DAMPED) != 0u;
+    dragged = TERMS && (hd.flags & FLAG_DRAG) != 0u;
     let graded = (hd.flags & FLAG_GRADED) != 0u;
     let w0 = p0 + 11u; // substep weights
     let m0 = w0 + hd.n_weights; // inv_m
@@ -345,7 +347,6 @@ fn integrate(i: u32) {
                 for (var c = 0u; c < nc; c++) {
                     d[c] = d[c] + (v[c] - v[c + 1u]) * tau;
                 }
-                x0[0] = x0[0] + v[0] * tau;
                 tt[0] = tt[0] + tau;
             }
             if (capped) {
@@ -410,7 +411,9 @@ fn integrate(i: u32) {
             for (var c = 0u; c < nc; c++) {
                 add(&d, &cd, c, ws * (v[c] - v[c + 1u]));
             }
-            add1(&x0, &cx0, ws * v[0]);
+            if (pend) {
+                add1(&x0, &cx0, ws * v[0]);
+            }
             closed = forces();
             kick(hh);
         }
@@ -422,25 +425,20 @@ fn integrate(i: u32) {
             add1(&tt, &ct, step);
         }
         steps += 1u;
+        // Onsets, overlaps, releases (located inside the step).
         for (var c = 0u; c < nc; c++) {
-            if (d0[c] <= real(0.0) && d[c] > real(0.0)) {
-                contacts += 1u;
-                if (t_first < real(0.0)) {
-                    t_first = t_start;
-                }
-            }
-        }
-        if (closed) {
-            for (var c = 0u; c < nc; c++) {
-                max_ov = max(max_ov, d[c]);
-                max_ratio = max(max_ratio, d[c] * inv_r[c]);
-            }
-        }
-        // Locate each release inside the step.
-        for (var c = 0u; c < nc; c++) {
-            let d1 = d[c];
             let dd = d0[c];
-            if (dd > real(0.0) && d1 <= real(0.0)) {
+            let d1 = d[c];
+            if (d1 > real(0.0)) {
+                if (dd <= real(0.0)) {
+                    contacts += 1u;
+                    if (t_first < real(0.0)) {
+                        t_first = t_start;
+                    }
+                }
+                max_ov = max(max_ov, d1);
+                max_ratio = max(max_ratio, d1 * inv_r[c]);
+            } else if (dd > real(0.0)) {
                 t_release = max(t_release, t_start + step * dd / (dd - d1));
             }
         }

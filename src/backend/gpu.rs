@@ -132,9 +132,10 @@ pub struct Gpu {
     device: wgpu::Device,
     queue: wgpu::Queue,
     layout: wgpu::BindGroupLayout,
-    pipe_f32: wgpu::ComputePipeline,
+    /// [elastic free lines, with the pendulum and damping terms] (`TERMS`).
+    pipe_f32: [wgpu::ComputePipeline; 2],
     /// `None` when the adapter lacks SHADER_F64.
-    pipe_f64: Option<wgpu::ComputePipeline>,
+    pipe_f64: Option<[wgpu::ComputePipeline; 2]>,
     info: wgpu::AdapterInfo,
     max_workgroups: u32,
     /// Largest storage buffer binding (bytes).
@@ -184,7 +185,7 @@ impl Gpu {
             bind_group_layouts: &[Some(&layout)],
             immediate_size: 0,
         });
-        let pipeline = |p: Precision| -> Result<wgpu::ComputePipeline> {
+        let pipeline = |p: Precision, terms: bool| -> Result<wgpu::ComputePipeline> {
             // Catch shader or pipeline errors as values instead of a panic.
             let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
             let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
@@ -196,7 +197,11 @@ impl Gpu {
                 layout: Some(&pl),
                 module: &module,
                 entry_point: Some("main"),
-                compilation_options: Default::default(),
+                // TERMS = false: the compiler drops the pendulum and damping code.
+                compilation_options: wgpu::PipelineCompilationOptions {
+                    constants: &[("TERMS", if terms { 1.0 } else { 0.0 })],
+                    ..Default::default()
+                },
                 cache: None,
             });
             if let Some(e) = pollster::block_on(scope.pop()) {
@@ -208,9 +213,12 @@ impl Gpu {
             }
             Ok(pipe)
         };
-        let pipe_f32 = pipeline(Precision::F32)?;
+        let both = |p| -> Result<[wgpu::ComputePipeline; 2]> {
+            Ok([pipeline(p, false)?, pipeline(p, true)?])
+        };
+        let pipe_f32 = both(Precision::F32)?;
         let pipe_f64 = if f64_ok {
-            Some(pipeline(Precision::F64)?)
+            Some(both(Precision::F64)?)
         } else {
             None
         };
@@ -237,13 +245,15 @@ impl Gpu {
     }
 
     /// Integrate `jobs` (all valid) in precision `R`; one [`Run`] each.
-    fn runs<R: Real + Pod>(&self, jobs: &[(&Chain, &Solver)]) -> Result<Vec<Run>> {
-        let pipe = match std::mem::size_of::<R>() {
+    /// `terms`: some scene is a pendulum or dissipative (the general pipeline).
+    fn runs<R: Real + Pod>(&self, jobs: &[(&Chain, &Solver)], terms: bool) -> Result<Vec<Run>> {
+        let pipes = match std::mem::size_of::<R>() {
             4 => &self.pipe_f32,
             _ => self.pipe_f64.as_ref().ok_or_else(|| {
                 anyhow!("{} has no 64-bit float support (SHADER_F64): use --precision f32 or --backend cpu", self.info.name)
             })?,
         };
+        let pipe = &pipes[terms as usize];
         // Parts small enough for the adapter: workgroups per dimension, and
         // the largest storage binding (params and state grow with N).
         let max_scenes = (self.max_workgroups as usize) * WORKGROUP as usize;
@@ -429,7 +439,12 @@ impl Gpu {
                         _ => End::NonFinite,
                     },
                     v: (0..nb).map(f).collect(),
-                    x: ch.positions(f(s + 5), &overlap),
+                    // displacements are tracked on pendulums only (as on the CPU)
+                    x: if ch.is_pendulum() {
+                        ch.positions(f(s + 5), &overlap)
+                    } else {
+                        vec![f64::NAN; nb]
+                    },
                     overlap,
                     steps: words[WORDS * i + 1] as u64,
                     contacts: words[WORDS * i + 2] as u64,
@@ -478,13 +493,20 @@ impl Backend for Gpu {
 
     fn run(&self, jobs: &[Job]) -> Result<Vec<Outcome>> {
         let mut out: Vec<Option<Outcome>> = vec![None; jobs.len()];
-        for p in [Precision::F32, Precision::F64] {
+        for (p, terms) in [
+            (Precision::F32, false),
+            (Precision::F32, true),
+            (Precision::F64, false),
+            (Precision::F64, true),
+        ] {
             let (idx, batch): (Vec<usize>, Vec<(&Chain, &Solver)>) = jobs
                 .iter()
                 .enumerate()
                 .filter_map(|(i, j)| match j {
                     Job::Run { chain, solver }
-                        if solver.precision == p && solver.model == Model::Hertz =>
+                        if solver.precision == p
+                            && solver.model == Model::Hertz
+                            && (chain.is_pendulum() || chain.is_dissipative()) == terms =>
                     {
                         Some((i, (chain, solver)))
                     }
@@ -495,8 +517,8 @@ impl Backend for Gpu {
                 continue;
             }
             let runs = match p {
-                Precision::F32 => self.runs::<f32>(&batch)?,
-                Precision::F64 => self.runs::<f64>(&batch)?,
+                Precision::F32 => self.runs::<f32>(&batch, terms)?,
+                Precision::F64 => self.runs::<f64>(&batch, terms)?,
             };
             for ((i, (ch, solver)), run) in idx.into_iter().zip(batch).zip(runs) {
                 out[i] = Some(Outcome::from_run(
