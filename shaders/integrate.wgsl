@@ -183,11 +183,18 @@ fn kick(hh: real) {
         }
     }
     if (pend) {
-        add(&v, &cv, 0u, -(hh * f[0] * inv_m[0]) + hh * acc[0]);
-        for (var b = 1u; b < nb - 1u; b++) {
-            add(&v, &cv, b, hh * (f[b - 1u] - f[b]) * inv_m[b] + hh * acc[b]);
+        for (var b = 0u; b < nb; b++) {
+            var inc: real;
+            if (b == 0u) {
+                inc = -(hh * f[0] * inv_m[0]);
+            } else if (b == nb - 1u) {
+                inc = hh * f[nb - 2u] * inv_m[nb - 1u];
+            } else {
+                inc = hh * (f[b - 1u] - f[b]) * inv_m[b];
+            }
+            inc = inc + hh * acc[b];
+            add(&v, &cv, b, inc);
         }
-        add(&v, &cv, nb - 1u, hh * f[nb - 2u] * inv_m[nb - 1u] + hh * acc[nb - 1u]);
     } else {
         add(&v, &cv, 0u, -(hh * f[0] * inv_m[0]));
         for (var b = 1u; b < nb - 1u; b++) {
