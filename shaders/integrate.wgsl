@@ -53,14 +53,13 @@ struct Header {
     quarters: u32,
     // steps per dispatch, so that one dispatch stays under ~60,000 loop iterations
     budget: u32,
-    // FLAG_*: pendulum, damped contacts, air drag, graded free-line steps
+    // FLAG_*: pendulum, damped contacts, air drag
     flags: u32,
 }
 
 const FLAG_PENDULUM: u32 = 1u;
 const FLAG_DAMPED: u32 = 2u;
 const FLAG_DRAG: u32 = 4u;
-const FLAG_GRADED: u32 = 8u;
 
 @group(0) @binding(0) var<storage, read> headers: array<Header>;
 @group(0) @binding(1) var<storage, read> params: array<real>;
@@ -182,26 +181,20 @@ fn kick(hh: real) {
             cv[b] = cv[b] * q;
         }
     }
-    if (pend) {
-        for (var b = 0u; b < nb; b++) {
-            var inc: real;
-            if (b == 0u) {
-                inc = -(hh * f[0] * inv_m[0]);
-            } else if (b == nb - 1u) {
-                inc = hh * f[nb - 2u] * inv_m[nb - 1u];
-            } else {
-                inc = hh * (f[b - 1u] - f[b]) * inv_m[b];
-            }
-            inc = inc + hh * acc[b];
-            add(&v, &cv, b, inc);
-        }
-    } else {
-        add(&v, &cv, 0u, -(hh * f[0] * inv_m[0]));
-        for (var b = 1u; b < nb - 1u; b++) {
-            add(&v, &cv, b, hh * (f[b - 1u] - f[b]) * inv_m[b]);
-        }
-        add(&v, &cv, nb - 1u, hh * f[nb - 2u] * inv_m[nb - 1u]);
+    push(0u, -(hh * f[0] * inv_m[0]), hh);
+    for (var b = 1u; b < nb - 1u; b++) {
+        push(b, hh * (f[b - 1u] - f[b]) * inv_m[b], hh);
     }
+    push(nb - 1u, hh * f[nb - 2u] * inv_m[nb - 1u], hh);
+}
+
+// engine::integrate::push — body b's share of a kick, gravity added after.
+fn push(b: u32, contact: real, hh: real) {
+    var inc = contact;
+    if (pend) {
+        inc = inc + hh * acc[b];
+    }
+    add(&v, &cv, b, inc);
 }
 
 // engine::integrate::forces — returns whether any contact is closed.
@@ -286,7 +279,6 @@ fn integrate(i: u32) {
     pend = TERMS && (hd.flags & FLAG_PENDULUM) != 0u;
     damped = TERMS && (hd.flags & FLAG_DAMPED) != 0u;
     dragged = TERMS && (hd.flags & FLAG_DRAG) != 0u;
-    let graded = (hd.flags & FLAG_GRADED) != 0u;
     let w0 = p0 + 11u; // substep weights
     let m0 = w0 + hd.n_weights; // inv_m
     let q = m0 + nb;
@@ -387,7 +379,7 @@ fn integrate(i: u32) {
                 s0 = h;
             }
             step = graded_step(s0, h, h_min, t_scale, hd.quarters);
-        } else if (graded) {
+        } else if (hd.quarters > 0u) {
             step = graded_step(h, h, h_min, t_scale, hd.quarters);
         }
         var last = false;

@@ -53,13 +53,12 @@ pub struct GpuHeader {
     pub quarters: u32,
     /// Steps one dispatch may run for this scene.
     pub budget: u32,
-    /// `FLAG_*`: pendulum, damped contacts, air drag, graded free-line steps.
+    /// `FLAG_*`: pendulum, damped contacts, air drag.
     pub flags: u32,
 }
 const FLAG_PENDULUM: u32 = 1;
 const FLAG_DAMPED: u32 = 2;
 const FLAG_DRAG: u32 = 4;
-const FLAG_GRADED: u32 = 8;
 /// Words of `out_u32` per scene: end, steps, contacts.
 const WORDS: usize = 3;
 /// Scalars after the per-body and per-contact state: t, t_first, t_release,
@@ -307,7 +306,6 @@ impl Gpu {
                     (ch.is_pendulum(), FLAG_PENDULUM),
                     (ch.damping_a > 0.0, FLAG_DAMPED),
                     (ch.air_drag > 0.0, FLAG_DRAG),
-                    (sp.graded, FLAG_GRADED),
                 ]
                 .iter()
                 .filter(|(on, _)| *on)

@@ -184,28 +184,19 @@ fn kick<R: Real>(k: &Consts<R>, s: &mut State<R>, hh: R) {
         }
     }
     let inv_m = &k.inv_m;
-    if k.pend {
-        add(
-            &mut s.v,
-            &mut s.cv,
-            0,
-            -(hh * s.f[0] * inv_m[0]) + hh * s.acc[0],
-        );
-        for b in 1..nb - 1 {
-            let inc = hh * (s.f[b - 1] - s.f[b]) * inv_m[b] + hh * s.acc[b];
-            add(&mut s.v, &mut s.cv, b, inc);
-        }
-        let inc = hh * s.f[nb - 2] * inv_m[nb - 1] + hh * s.acc[nb - 1];
-        add(&mut s.v, &mut s.cv, nb - 1, inc);
-    } else {
-        add(&mut s.v, &mut s.cv, 0, -(hh * s.f[0] * inv_m[0]));
-        for b in 1..nb - 1 {
-            let inc = hh * (s.f[b - 1] - s.f[b]) * inv_m[b];
-            add(&mut s.v, &mut s.cv, b, inc);
-        }
-        let inc = hh * s.f[nb - 2] * inv_m[nb - 1];
-        add(&mut s.v, &mut s.cv, nb - 1, inc);
+    push(k, s, 0, -(hh * s.f[0] * inv_m[0]), hh);
+    for b in 1..nb - 1 {
+        push(k, s, b, hh * (s.f[b - 1] - s.f[b]) * inv_m[b], hh);
     }
+    push(k, s, nb - 1, hh * s.f[nb - 2] * inv_m[nb - 1], hh);
+}
+
+/// Body b's share of a kick: the contact push `inc`, plus gravity on a pendulum
+/// (added after, as in the shader's `push`).
+#[inline(always)]
+fn push<R: Real>(k: &Consts<R>, s: &mut State<R>, b: usize, inc: R, hh: R) {
+    let inc = if k.pend { inc + hh * s.acc[b] } else { inc };
+    add(&mut s.v, &mut s.cv, b, inc);
 }
 
 /// v[b] += inc; in f32 with Kahan compensation (`cv` carries the lost low

@@ -6,6 +6,7 @@
 use std::path::Path;
 
 use anyhow::Result;
+use plotters::coord::types::RangedCoordf64;
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
@@ -93,6 +94,32 @@ fn range(vals: impl Iterator<Item = f64>) -> (f64, f64) {
     }
 }
 
+/// One panel against time: axes t (s) and `y` labelled `y_desc`.
+fn panel<'a, DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    t: std::ops::Range<f64>,
+    y: std::ops::Range<f64>,
+    y_desc: &str,
+) -> Result<ChartContext<'a, DB, Cartesian2d<RangedCoordf64, RangedCoordf64>>> {
+    let span = y.end - y.start;
+    let mut ch = ChartBuilder::on(area)
+        .margin(12)
+        .x_label_area_size(45)
+        .y_label_area_size(85)
+        .build_cartesian_2d(t, y)
+        .map_err(drawing)?;
+    ch.configure_mesh()
+        .x_desc("t (s)")
+        .y_desc(y_desc)
+        .x_label_formatter(&|v| number(*v))
+        .y_label_formatter(&|v| number_in(*v, span))
+        .label_style((FONT, 13))
+        .axis_desc_style((FONT, 15))
+        .draw()
+        .map_err(drawing)?;
+    Ok(ch)
+}
+
 fn draw<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, tr: &Trace) -> Result<()> {
     area.fill(&WHITE).map_err(drawing)?;
     let area = area.titled(&tr.title, (FONT, 20)).map_err(drawing)?;
@@ -101,28 +128,13 @@ fn draw<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, tr: &Trace) -> Result
     let (t0, t1) = (tr.t[0], tr.t[tr.t.len() - 1]);
     let colour = |i: usize| Palette99::pick(i).to_rgba();
     let s = tr.spacing;
-    let ft = |v: &f64| number(*v);
     let (ylo, yhi) = range(
         tr.x.iter()
             .enumerate()
             .flat_map(|(i, x)| x.iter().map(move |a| i as f64 * s + a)),
     );
-    let fy = |v: &f64| number_in(*v, yhi - ylo);
-    let mut ch = ChartBuilder::on(&top)
-        .margin(12)
-        .x_label_area_size(45)
-        .y_label_area_size(85)
-        .build_cartesian_2d(t0..t1, ylo..yhi)
-        .map_err(drawing)?;
-    ch.configure_mesh()
-        .x_desc("t (s)")
-        .y_desc(format!("position x_i + i·s (m), s = {}", number(s)))
-        .x_label_formatter(&ft)
-        .y_label_formatter(&fy)
-        .label_style((FONT, 13))
-        .axis_desc_style((FONT, 15))
-        .draw()
-        .map_err(drawing)?;
+    let y_desc = format!("position x_i + i·s (m), s = {}", number(s));
+    let mut ch = panel(&top, t0..t1, ylo..yhi, &y_desc)?;
     for (i, x) in tr.x.iter().enumerate() {
         let c = colour(i);
         ch.draw_series(LineSeries::new(
@@ -141,22 +153,7 @@ fn draw<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, tr: &Trace) -> Result
         .draw()
         .map_err(drawing)?;
     let (vlo, vhi) = range(tr.v.iter().flatten().copied());
-    let fv = |v: &f64| number_in(*v, vhi - vlo);
-    let mut cv = ChartBuilder::on(&bottom)
-        .margin(12)
-        .x_label_area_size(45)
-        .y_label_area_size(85)
-        .build_cartesian_2d(t0..t1, vlo..vhi)
-        .map_err(drawing)?;
-    cv.configure_mesh()
-        .x_desc("t (s)")
-        .y_desc("velocity v_i (m/s)")
-        .x_label_formatter(&ft)
-        .y_label_formatter(&fv)
-        .label_style((FONT, 13))
-        .axis_desc_style((FONT, 15))
-        .draw()
-        .map_err(drawing)?;
+    let mut cv = panel(&bottom, t0..t1, vlo..vhi, "velocity v_i (m/s)")?;
     for (i, v) in tr.v.iter().enumerate() {
         cv.draw_series(LineSeries::new(
             tr.t.iter().zip(v).map(|(&t, &a)| (t, a)),
