@@ -137,7 +137,7 @@ impl Outcome {
             energy_last: {
                 let last = chain.body_of_ball.len() - 1;
                 let vl = run.v[chain.body_of_ball[last]];
-                // the last ball's own mass: its body's mass shared by its balls
+                // the last ball's own mass (a glued body's is shared by its balls)
                 let m_ball = chain.ball_mass[last];
                 if e0 > 0.0 {
                     0.5 * m_ball * vl * vl / e0
