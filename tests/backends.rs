@@ -321,3 +321,41 @@ fn gpu_matches_cpu_on_pendulums_and_damping() {
         assert!(worst_x <= bound * 0.1, "{worst_x:e}");
     }
 }
+
+/// The CPU integrates a batch side by side in SIMD lanes (refilled as runs
+/// end, narrowed for the last ones); every lane must do exactly what a chain
+/// run alone does: every field of every outcome bit-identical, in both
+/// precisions, on free lines of every length and method, pendulums, damping.
+#[test]
+fn cpu_lanes_match_single_runs_bit_for_bit() {
+    use hertz_cradle::engine::{simulate_chain, Silent};
+    for p in [Precision::F64, Precision::F32] {
+        let mut jobs = batch(p);
+        jobs.extend(pendulum_batch(p));
+        let lanes = Cpu.run(&jobs).unwrap();
+        for (j, a) in jobs.iter().zip(&lanes) {
+            let Job::Run { chain, solver } = j else {
+                unreachable!()
+            };
+            let b = simulate_chain(chain, solver, &mut Silent);
+            let bits = |o: &Outcome| {
+                let mut w: Vec<u64> = o.v.iter().chain(&o.x).map(|x| x.to_bits()).collect();
+                w.extend(
+                    [
+                        o.energy_error,
+                        o.momentum_error,
+                        o.max_overlap_m,
+                        o.t_end,
+                        o.t_contact,
+                        o.t_release,
+                    ]
+                    .map(f64::to_bits),
+                );
+                w.extend([o.steps, o.contacts]);
+                w
+            };
+            assert_eq!(a.status, b.status, "{j:?}");
+            assert_eq!(bits(a), bits(&b), "{j:?}\nlanes {a:?}\nalone {b:?}");
+        }
+    }
+}

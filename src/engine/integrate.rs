@@ -6,6 +6,14 @@
 //! computed from large absolute positions (in f32, x_i − x_{i+1} of two
 //! positions that have drifted a metre loses every digit of a 10 µm overlap).
 //!
+//! A sweep's chains run side by side ([`integrate_batch`]): lane l of every
+//! state array is one chain, each lane takes its own steps, and the substeps
+//! of all lanes are one loop that the compiler vectorises (AVX when the CPU
+//! has it, picked at run time) — a single chain spends most of its time
+//! waiting on each √δ in turn. Each lane does the same operations as a chain
+//! run alone ([`integrate`], one lane), so results do not depend on the
+//! batch, and are bit-identical to the shader's in f64.
+//!
 //! Work a scene does not need is skipped: while every contact is open the chain
 //! is in free flight and is advanced analytically to the next contact onset
 //! (0 steps); the run ends as soon as no contact is closed and none is closing.
@@ -96,26 +104,6 @@ pub struct Run {
     pub contacts: u64,
 }
 
-struct State<R> {
-    v: [R; MAX_BALLS],
-    /// Kahan compensation of `v` (f32 only).
-    cv: [R; MAX_BALLS],
-    d: [R; MAX_BALLS],
-    /// Kahan compensation of `d` (f32 only).
-    cd: [R; MAX_BALLS],
-    /// Contact forces (N).
-    f: [R; MAX_BALLS],
-    /// Gravity accelerations of the bodies (pendulum; m/s²).
-    acc: [R; MAX_BALLS],
-    /// Hunt–Crossley χ of each contact (s/m), set while it is open.
-    chi: [R; MAX_BALLS],
-    /// Overlaps at the start of the step (onset counting).
-    d0: [R; MAX_BALLS],
-    /// Displacement of body 0 (m) and its compensation.
-    x0: [R; 1],
-    cx0: [R; 1],
-}
-
 /// sin θ for the pendulum force: θ reduced to [−π/2, π/2], then Taylor to θ^21
 /// (error < 2e-18), the same operations as `pendulum_sin` in the shader
 /// (SPIR-V has no f64 sin).
@@ -157,85 +145,18 @@ pub fn decay<R: Real>(y: R) -> R {
     p
 }
 
-/// Constants of one run, in the run's precision.
-struct Consts<R> {
-    nb: usize,
-    nc: usize,
-    inv_m: [R; MAX_BALLS],
-    gap: [R; MAX_BALLS],
-    pend: bool,
-    damped: bool,
-    dragged: bool,
-    g: R,
-    inv_l: R,
-    drag: R,
-}
-
-/// Half a kick of `hh` seconds: air drag (exact decay), then contact forces
-/// and gravity. Body b is pushed left by contact b and right by contact b−1.
-#[inline(always)]
-fn kick<R: Real>(k: &Consts<R>, s: &mut State<R>, hh: R) {
-    let nb = k.nb;
-    if k.dragged {
-        let q = decay(k.drag * hh);
-        for b in 0..nb {
-            s.v[b] = s.v[b] * q;
-            s.cv[b] = s.cv[b] * q;
-        }
-    }
-    let inv_m = &k.inv_m;
-    push(k, s, 0, -(hh * s.f[0] * inv_m[0]), hh);
-    for b in 1..nb - 1 {
-        push(k, s, b, hh * (s.f[b - 1] - s.f[b]) * inv_m[b], hh);
-    }
-    push(k, s, nb - 1, hh * s.f[nb - 2] * inv_m[nb - 1], hh);
-}
-
-/// Body b's share of a kick: the contact push `inc`, plus gravity on a pendulum
-/// (added after, as in the shader's `push`).
-#[inline(always)]
-fn push<R: Real>(k: &Consts<R>, s: &mut State<R>, b: usize, inc: R, hh: R) {
-    let inc = if k.pend { inc + hh * s.acc[b] } else { inc };
-    add(&mut s.v, &mut s.cv, b, inc);
-}
-
-/// v[b] += inc; in f32 with Kahan compensation (`cv` carries the lost low
+/// v += inc; in f32 with Kahan compensation (`cv` carries the lost low
 /// bits): thousands of kicks 1e-4 the size of v would otherwise lose ~1e-4·v.
 #[inline(always)]
-fn add<R: Real, const N: usize>(v: &mut [R; N], cv: &mut [R; N], b: usize, inc: R) {
+fn add<R: Real>(v: &mut R, cv: &mut R, inc: R) {
     if R::COMPENSATED {
-        let y = inc - cv[b];
-        let t = v[b] + y;
-        cv[b] = (t - v[b]) - y;
-        v[b] = t;
+        let y = inc - *cv;
+        let t = *v + y;
+        *cv = (t - *v) - y;
+        *v = t;
     } else {
-        v[b] = v[b] + inc;
+        *v = *v + inc;
     }
-}
-
-/// Forces of every contact from the overlaps (and, damped, the closing
-/// speeds); gravity from the displacements on a pendulum. Returns whether any
-/// contact is closed.
-#[inline(always)]
-fn forces<R: Real>(k: &Consts<R>, kc: &[R; MAX_BALLS], s: &mut State<R>) -> bool {
-    let mut closed = false;
-    for c in 0..k.nc {
-        s.f[c] = if k.damped {
-            contact_force(kc[c], s.d[c], s.chi[c], s.v[c] - s.v[c + 1])
-        } else {
-            hertz_force(kc[c], s.d[c])
-        };
-        closed |= s.d[c] > R::zero();
-    }
-    if k.pend {
-        let mut x = s.x0[0];
-        s.acc[0] = -(k.g * pendulum_sin(x * k.inv_l));
-        for b in 1..k.nb {
-            x = x - k.gap[b - 1] - s.d[b - 1];
-            s.acc[b] = -(k.g * pendulum_sin(x * k.inv_l));
-        }
-    }
-    closed
 }
 
 /// How steps are taken: a symmetric composition of velocity-Verlet substeps
@@ -262,7 +183,7 @@ pub struct StepPlan {
     pub h_free: f64,
 }
 
-/// The step to take now, at most `s0`. The Hertz force has a δ^{3/2} kink
+/// The step each lane takes now, at most `s0`. The Hertz force has a δ^{3/2} kink
 /// where a contact opens or closes, which costs a high-order method its order;
 /// steps are made small near every kink, on both sides: at time distance
 /// T = |δ|/|r| < t_c from a kink the step is h·(T/t_c)^(q/4) (the p-th
@@ -270,316 +191,846 @@ pub struct StepPlan {
 /// T/2 before the kink and 2T after it, never less than `h_min`, where a step
 /// crosses the kink. On a free line `s0 = h`; on a pendulum in free flight
 /// `s0` is the long free-flight step, halved towards each onset.
+///
+/// Without branches (every lane at once); the same operations as
+/// `graded_step` in the shader.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
-pub fn graded_step<R: Real>(
+fn graded_steps<R: Real, const L: usize>(
     nc: usize,
-    d: &[R; MAX_BALLS],
-    v: &[R; MAX_BALLS],
-    s0: R,
-    h: R,
-    h_min: R,
-    tc: R,
+    d: &[[R; L]; MAX_BALLS],
+    v: &[[R; L]; MAX_BALLS],
+    s0: &[R; L],
+    h: &[R; L],
+    h_min: &[R; L],
+    tc: &[R; L],
     quarters: u32,
-) -> R {
+) -> [R; L] {
     let zero = R::zero();
     let half = R::of(0.5);
-    let mut s = s0;
+    let mut s = *s0;
     for c in 0..nc {
-        let r = v[c] - v[c + 1];
-        let dc = d[c];
-        let ar = r.abs();
-        if ar <= zero {
-            continue;
+        // In three lane loops: a loop inside one keeps it from vectorising.
+        let (mut tk, mut q, mut g) = ([zero; L], [zero; L], [R::one(); L]);
+        for l in 0..L {
+            let ar = (v[c][l] - v[c + 1][l]).abs();
+            tk[l] = d[c][l].abs() / ar;
+            q[l] = (tk[l] / tc[l]).sqrt().sqrt();
         }
-        let tk = dc.abs() / ar;
-        if tk >= s + s {
-            continue; // no restriction from this contact
-        }
-        let ahead = (dc < zero && r > zero) || (dc > zero && r < zero);
-        // Halve the distance to a kink ahead, at most double the distance
-        // from one behind: no substep (Yoshida's step backwards included)
-        // reaches across a kink until the step is down to h_min.
-        let cap = if ahead { tk * half } else { tk + tk };
-        let mut sc = cap;
-        if tk < tc {
-            let q = (tk / tc).sqrt().sqrt();
-            let mut g = R::one();
-            for _ in 0..quarters {
-                g = g * q;
+        for _ in 0..quarters {
+            for l in 0..L {
+                g[l] = g[l] * q[l];
             }
-            sc = sc.min(h * g);
         }
-        s = s.min(sc.max(h_min));
+        for l in 0..L {
+            let r = v[c][l] - v[c + 1][l];
+            let dc = d[c][l];
+            let skip = r.abs() <= zero || tk[l] >= s[l] + s[l];
+            let ahead = (dc < zero && r > zero) || (dc > zero && r < zero);
+            let cap = if ahead { tk[l] * half } else { tk[l] + tk[l] };
+            let sc = if tk[l] < tc[l] {
+                cap.min(h[l] * g[l])
+            } else {
+                cap
+            };
+            let cand = s[l].min(sc.max(h_min[l]));
+            s[l] = if skip { s[l] } else { cand };
+        }
     }
     s
 }
 
-/// Integrate a chain between contact events with the steps of `plan`, in
-/// precision `R`. See the module doc for what is skipped.
+/// One run of a batch: a chain, its steps and its caps.
+#[derive(Clone, Copy, Debug)]
+pub struct Task<'a> {
+    pub chain: &'a Chain,
+    pub plan: StepPlan,
+    pub lim: Limits,
+}
+
+impl Task<'_> {
+    /// Runs with equal keys share a lane group: the same bodies, substeps and
+    /// terms (everything else may differ from lane to lane).
+    fn key(&self) -> (usize, usize, usize, bool, u32, bool, bool, bool) {
+        let ch = self.chain;
+        let terms = ch.is_pendulum() || ch.is_dissipative();
+        (
+            ch.n_bodies(),
+            self.plan.weights.as_ptr() as usize,
+            self.plan.weights.len(),
+            self.plan.graded,
+            self.plan.grade_quarters,
+            terms && ch.is_pendulum(),
+            terms && ch.damping_a > 0.0,
+            terms && ch.air_drag > 0.0,
+        )
+    }
+}
+
+/// Scenes integrated side by side by the CPU: lane l of every array below
+/// belongs to one run. Every lane takes its own steps, but the substeps of all
+/// lanes are one loop, which the compiler turns into SIMD and the CPU
+/// overlaps (a single chain waits on each √δ in turn).
+pub const LANES: usize = 32;
+
+/// Integrate every task, [`LANES`] at a time; results in task order. The
+/// same arithmetic, operation for operation, as [`integrate`] on each.
+pub fn integrate_batch<R: Real>(tasks: &[Task]) -> Vec<Run> {
+    let mut order: Vec<usize> = (0..tasks.len()).collect();
+    order.sort_by_key(|&i| tasks[i].key());
+    let mut out: Vec<Option<Run>> = vec![None; tasks.len()];
+    for group in order.chunk_by(|&a, &b| tasks[a].key() == tasks[b].key()) {
+        #[cfg(target_arch = "x86_64")]
+        if is_x86_feature_detected!("avx") {
+            // SAFETY: the CPU has AVX (checked just above).
+            unsafe { run_group_avx::<R>(tasks, group, &mut out) };
+            continue;
+        }
+        run_group::<R>(tasks, group, &mut out);
+    }
+    out.into_iter()
+        .map(|r| r.expect("every task ran"))
+        .collect()
+}
+
+/// [`run_group`] compiled for AVX: four f64 (eight f32) lanes per
+/// instruction instead of two (four). No FMA: the rounding is the same as
+/// without AVX, operation for operation.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx")]
+unsafe fn run_group_avx<R: Real>(tasks: &[Task], group: &[usize], out: &mut [Option<Run>]) {
+    run_group::<R>(tasks, group, out)
+}
+
+/// One group of equal keys, with or without the gravity and damping terms.
+#[inline(always)]
+fn run_group<R: Real>(tasks: &[Task], group: &[usize], out: &mut [Option<Run>]) {
+    let ch = tasks[group[0]].chain;
+    let terms = ch.is_pendulum() || ch.is_dissipative();
+    // Long chains in fewer lanes: the state of every lane stays in L1 cache.
+    match (terms, ch.n_bodies() <= 12) {
+        (false, true) => run_lanes::<R, Silent, false, LANES>(tasks, group, out, &mut Silent),
+        (false, false) => run_lanes::<R, Silent, false, 4>(tasks, group, out, &mut Silent),
+        (true, true) => run_lanes::<R, Silent, true, LANES>(tasks, group, out, &mut Silent),
+        (true, false) => run_lanes::<R, Silent, true, 4>(tasks, group, out, &mut Silent),
+    }
+}
+
+/// Integrate one chain with the steps of `plan`, in precision `R`, reporting
+/// states to `obs`. See the module doc for what is skipped.
 pub fn integrate<R: Real, O: Observer>(
     ch: &Chain,
     plan: &StepPlan,
     lim: &Limits,
     obs: &mut O,
 ) -> Run {
+    let tasks = [Task {
+        chain: ch,
+        plan: *plan,
+        lim: *lim,
+    }];
+    let mut out = vec![None];
     // Work a scene does not need is not compiled in: an elastic free line
     // runs a variant without the gravity, damping and drag terms.
     if ch.is_pendulum() || ch.is_dissipative() {
-        integrate_terms::<R, O, true>(ch, plan, lim, obs)
+        run_lanes::<R, O, true, 1>(&tasks, &[0], &mut out, obs);
     } else {
-        integrate_terms::<R, O, false>(ch, plan, lim, obs)
+        run_lanes::<R, O, false, 1>(&tasks, &[0], &mut out, obs);
+    }
+    out.pop().flatten().expect("the task ran")
+}
+
+/// Settings shared by every lane of a group.
+struct Shape {
+    nb: usize,
+    nc: usize,
+    pend: bool,
+    damped: bool,
+    dragged: bool,
+    graded: bool,
+    quarters: u32,
+    track_x: bool,
+}
+
+/// The state and constants of `L` runs, lane l of each array for run l.
+struct Lanes<R, const L: usize> {
+    v: [[R; L]; MAX_BALLS],
+    /// Kahan compensation of `v` (f32 only).
+    cv: [[R; L]; MAX_BALLS],
+    d: [[R; L]; MAX_BALLS],
+    /// Kahan compensation of `d` (f32 only).
+    cd: [[R; L]; MAX_BALLS],
+    /// Contact forces (N).
+    f: [[R; L]; MAX_BALLS],
+    /// Gravity accelerations of the bodies (pendulum; m/s²).
+    acc: [[R; L]; MAX_BALLS],
+    /// Hunt–Crossley χ of each contact (s/m), set while it is open.
+    chi: [[R; L]; MAX_BALLS],
+    /// Overlaps at the start of the step (onset counting).
+    d0: [[R; L]; MAX_BALLS],
+    /// Displacement of body 0 (m) and its compensation.
+    x0: [R; L],
+    cx0: [R; L],
+    inv_m: [[R; L]; MAX_BALLS],
+    gap: [[R; L]; MAX_BALLS],
+    kc: [[R; L]; MAX_BALLS],
+    g: [R; L],
+    inv_l: [R; L],
+    drag: [R; L],
+    a_e: [R; L],
+    v_floor: [R; L],
+    hr: [R; L],
+    h_free: [R; L],
+    h_min: [R; L],
+    t_scale: [R; L],
+    /// The step each lane takes now (0: idle lane).
+    step: [R; L],
+    closed: [bool; L],
+    /// Largest overlap seen (m), its ratio to the smaller radius, and
+    /// 1/radius of each contact.
+    max_ov: [f64; L],
+    max_ratio: [f64; L],
+    inv_r: [[f64; L]; MAX_BALLS],
+    run: [Book; L],
+}
+
+/// A lane's bookkeeping, in f64.
+#[derive(Clone, Copy)]
+struct Book {
+    /// Index of the task in the lane; `None`: idle.
+    task: Option<usize>,
+    t: f64,
+    steps: u64,
+    contacts: u64,
+    t_first: Option<f64>,
+    t_release: Option<f64>,
+    /// The step lands on a pendulum's duration.
+    last: bool,
+    lim: Limits,
+}
+
+const IDLE: Book = Book {
+    task: None,
+    t: 0.0,
+    steps: 0,
+    contacts: 0,
+    t_first: None,
+    t_release: None,
+    last: false,
+    lim: Limits {
+        max_steps: 0,
+        max_time: 0.0,
+    },
+};
+
+/// Force of one contact: Hertz, or Hunt–Crossley with closing speed `r`.
+#[inline(always)]
+fn contact<R: Real>(damped: bool, k: R, d: R, chi: R, r: R) -> R {
+    if damped {
+        contact_force(k, d, chi, r)
+    } else {
+        hertz_force(k, d)
     }
 }
 
-/// [`integrate`] with (`TERMS`) or without the pendulum and damping terms.
-fn integrate_terms<R: Real, O: Observer, const TERMS: bool>(
-    ch: &Chain,
-    plan: &StepPlan,
-    lim: &Limits,
-    obs: &mut O,
-) -> Run {
-    let nb = ch.n_bodies();
-    let nc = nb - 1;
-    let zero = R::zero();
-    let mut s = State {
-        v: [zero; MAX_BALLS],
-        cv: [zero; MAX_BALLS],
-        cd: [zero; MAX_BALLS],
-        d: [zero; MAX_BALLS],
-        f: [zero; MAX_BALLS],
-        acc: [zero; MAX_BALLS],
-        chi: [zero; MAX_BALLS],
-        d0: [zero; MAX_BALLS],
-        x0: [R::of(ch.x0[0])],
-        cx0: [zero],
-    };
-    let mut kn = Consts {
-        nb,
-        nc,
-        inv_m: [zero; MAX_BALLS],
-        gap: [zero; MAX_BALLS],
-        pend: TERMS && ch.is_pendulum(),
-        damped: TERMS && ch.damping_a > 0.0,
-        dragged: TERMS && ch.air_drag > 0.0,
-        g: R::of(ch.gravity),
-        inv_l: R::of(if ch.is_pendulum() {
+impl<R: Real, const L: usize> Lanes<R, L> {
+    fn new() -> Box<Self> {
+        let z = [[R::zero(); L]; MAX_BALLS];
+        let zl = [R::zero(); L];
+        Box::new(Lanes {
+            v: z,
+            cv: z,
+            d: z,
+            cd: z,
+            f: z,
+            acc: z,
+            chi: z,
+            d0: z,
+            x0: zl,
+            cx0: zl,
+            inv_m: z,
+            gap: z,
+            kc: z,
+            g: zl,
+            inv_l: zl,
+            drag: zl,
+            a_e: zl,
+            v_floor: zl,
+            hr: zl,
+            h_free: zl,
+            h_min: zl,
+            t_scale: zl,
+            step: zl,
+            closed: [false; L],
+            max_ov: [0.0; L],
+            max_ratio: [0.0; L],
+            inv_r: [[0.0; L]; MAX_BALLS],
+            run: [IDLE; L],
+        })
+    }
+
+    /// Put run `i` into lane `l`.
+    fn load(&mut self, sh: &Shape, l: usize, i: usize, task: &Task) {
+        let (ch, plan) = (task.chain, &task.plan);
+        let zero = R::zero();
+        for b in 0..sh.nb {
+            self.v[b][l] = R::of(ch.v0[b]);
+            self.inv_m[b][l] = R::of(1.0 / ch.mass[b]);
+            self.acc[b][l] = zero;
+            self.cv[b][l] = zero;
+        }
+        let d_init = ch.initial_overlap();
+        let mut book = IDLE;
+        for c in 0..sh.nc {
+            self.d[c][l] = R::of(d_init[c]);
+            self.gap[c][l] = R::of(ch.gap[c]);
+            self.kc[c][l] = R::of(ch.k[c]);
+            self.cd[c][l] = zero;
+            self.chi[c][l] = zero;
+            self.f[c][l] = zero;
+            self.inv_r[c][l] = 1.0 / ch.r_min[c];
+        }
+        self.x0[l] = R::of(ch.x0[0]);
+        self.cx0[l] = zero;
+        self.g[l] = R::of(ch.gravity);
+        self.inv_l[l] = R::of(if ch.is_pendulum() {
             1.0 / ch.length
         } else {
             0.0
-        }),
-        drag: R::of(ch.air_drag),
-    };
-    let mut inv_r = [0.0f64; MAX_BALLS];
-    for b in 0..nb {
-        s.v[b] = R::of(ch.v0[b]);
-        kn.inv_m[b] = R::of(1.0 / ch.mass[b]);
+        });
+        self.drag[l] = R::of(ch.air_drag);
+        self.a_e[l] = R::of(ch.damping_a);
+        self.hr[l] = R::of(plan.h);
+        self.h_free[l] = R::of(plan.h_free);
+        self.h_min[l] = R::of(plan.h_min);
+        self.t_scale[l] = R::of(plan.t_scale);
+        // Closing speeds at round-off level are noise, not an approach: without
+        // this floor two balls left at ±1e-15 m/s would "collide" a billion years
+        // later and hit the time cap.
+        self.v_floor[l] = closing_speed_floor::<R>(ch.v_in(), plan.settle_rel);
+        self.step[l] = zero;
+        self.max_ov[l] = 0.0;
+        self.max_ratio[l] = 0.0;
+        book.task = Some(i);
+        book.lim = task.lim;
+        self.run[l] = book;
+        self.closed[l] = self.forces_one(sh, l);
     }
-    let d_init = ch.initial_overlap();
-    for c in 0..nc {
-        s.d[c] = R::of(d_init[c]);
-        kn.gap[c] = R::of(ch.gap[c]);
-        inv_r[c] = 1.0 / ch.r_min[c];
-    }
-    let kc = {
-        let mut k = [zero; MAX_BALLS];
-        for c in 0..nc {
-            k[c] = R::of(ch.k[c]);
-        }
-        k
-    };
-    let pend = kn.pend;
-    // Body 0's displacement matters to gravity and to an observer; a free line
-    // in a sweep does without (its displacements are not reported).
-    let track_x = pend || O::ACTIVE;
-    let hr = R::of(plan.h);
-    let h_free = R::of(plan.h_free);
-    let h_min = R::of(plan.h_min);
-    let t_scale = R::of(plan.t_scale);
-    let quarters = if plan.graded { plan.grade_quarters } else { 0 };
-    let a_e = R::of(ch.damping_a);
-    let half = R::of(0.5);
-    // Closing speeds at round-off level are noise, not an approach: without
-    // this floor two balls left at ±1e-15 m/s would "collide" a billion years
-    // later and hit the time cap.
-    let v_floor = closing_speed_floor::<R>(ch.v_in(), plan.settle_rel);
-    let mut t = 0.0f64;
-    let mut steps = 0u64;
-    let mut contacts = 0u64;
-    let mut closed = forces(&kn, &kc, &mut s);
-    let (mut t_first, mut t_release) = (None, None);
-    let (mut max_ov, mut max_ratio) = (0.0f64, 0.0f64);
-    let observe = |t: f64, s: &State<R>, obs: &mut O| {
-        if O::ACTIVE {
-            let d: Vec<f64> = s.d[..nc].iter().map(|d| d.to64()).collect();
-            let x = ch.positions(s.x0[0].to64(), &d);
-            let v: Vec<f64> = s.v[..nb].iter().map(|v| v.to64()).collect();
-            obs.state(t, &x, &v);
-        }
-    };
-    observe(t, &s, obs);
 
-    let end = loop {
-        if !closed && !pend {
+    /// The running lanes, moved into a kernel of `M` lanes (at least as many).
+    fn narrow<const M: usize>(&self, sh: &Shape) -> Box<Lanes<R, M>> {
+        let mut to = Lanes::<R, M>::new();
+        let mut m = 0;
+        for l in 0..L {
+            if self.run[l].task.is_some() {
+                self.move_lane(sh, l, &mut to, m);
+                m += 1;
+            }
+        }
+        to
+    }
+
+    /// Move lane l, state and bookkeeping, into lane m of `to`.
+    fn move_lane<const M: usize>(&self, sh: &Shape, l: usize, to: &mut Lanes<R, M>, m: usize) {
+        for b in 0..sh.nb {
+            to.v[b][m] = self.v[b][l];
+            to.cv[b][m] = self.cv[b][l];
+            to.acc[b][m] = self.acc[b][l];
+            to.inv_m[b][m] = self.inv_m[b][l];
+        }
+        for c in 0..sh.nc {
+            to.d[c][m] = self.d[c][l];
+            to.cd[c][m] = self.cd[c][l];
+            to.f[c][m] = self.f[c][l];
+            to.chi[c][m] = self.chi[c][l];
+            to.d0[c][m] = self.d0[c][l];
+            to.gap[c][m] = self.gap[c][l];
+            to.kc[c][m] = self.kc[c][l];
+            to.inv_r[c][m] = self.inv_r[c][l];
+        }
+        to.x0[m] = self.x0[l];
+        to.cx0[m] = self.cx0[l];
+        to.g[m] = self.g[l];
+        to.inv_l[m] = self.inv_l[l];
+        to.drag[m] = self.drag[l];
+        to.a_e[m] = self.a_e[l];
+        to.v_floor[m] = self.v_floor[l];
+        to.hr[m] = self.hr[l];
+        to.h_free[m] = self.h_free[l];
+        to.h_min[m] = self.h_min[l];
+        to.t_scale[m] = self.t_scale[l];
+        to.step[m] = self.step[l];
+        to.closed[m] = self.closed[l];
+        to.max_ov[m] = self.max_ov[l];
+        to.max_ratio[m] = self.max_ratio[l];
+        to.run[m] = self.run[l];
+    }
+
+    /// Lane l takes task `i`, or idles (step 0, state cleared) if there is none.
+    fn next<O: Observer>(
+        &mut self,
+        sh: &Shape,
+        l: usize,
+        i: Option<usize>,
+        tasks: &[Task],
+        obs: &mut O,
+    ) {
+        match i {
+            Some(i) => {
+                self.load(sh, l, i, &tasks[i]);
+                observe(sh, self, l, tasks[i].chain, obs);
+            }
+            None => {
+                for b in 0..sh.nb {
+                    self.v[b][l] = R::zero();
+                    self.d[b][l] = R::zero();
+                    self.f[b][l] = R::zero();
+                    self.acc[b][l] = R::zero();
+                }
+                self.step[l] = R::zero();
+                self.run[l] = IDLE;
+            }
+        }
+    }
+
+    /// Forces of lane l's contacts (and gravity on a pendulum); whether any
+    /// contact is closed.
+    #[inline(always)]
+    fn forces_one(&mut self, sh: &Shape, l: usize) -> bool {
+        let mut closed = false;
+        for c in 0..sh.nc {
+            let r = self.v[c][l] - self.v[c + 1][l];
+            self.f[c][l] = contact(sh.damped, self.kc[c][l], self.d[c][l], self.chi[c][l], r);
+            closed |= self.d[c][l] > R::zero();
+        }
+        if sh.pend {
+            let mut x = self.x0[l];
+            self.acc[0][l] = -(self.g[l] * pendulum_sin(x * self.inv_l[l]));
+            for b in 1..sh.nb {
+                x = x - self.gap[b - 1][l] - self.d[b - 1][l];
+                self.acc[b][l] = -(self.g[l] * pendulum_sin(x * self.inv_l[l]));
+            }
+        }
+        closed
+    }
+
+    /// [`Self::forces_one`] on every lane, one loop over the lanes per contact.
+    #[inline(always)]
+    fn forces(&mut self, sh: &Shape) {
+        let zero = R::zero();
+        let mut closed = [false; L];
+        for c in 0..sh.nc {
+            let (k, d, chi, f) = (&self.kc[c], &self.d[c], &self.chi[c], &mut self.f[c]);
+            let (va, vb) = (&self.v[c], &self.v[c + 1]);
+            for l in 0..L {
+                f[l] = contact(sh.damped, k[l], d[l], chi[l], va[l] - vb[l]);
+                closed[l] |= d[l] > zero;
+            }
+        }
+        self.closed = closed;
+        if sh.pend {
+            let mut x = self.x0;
+            for l in 0..L {
+                self.acc[0][l] = -(self.g[l] * pendulum_sin(x[l] * self.inv_l[l]));
+            }
+            for b in 1..sh.nb {
+                for l in 0..L {
+                    x[l] = x[l] - self.gap[b - 1][l] - self.d[b - 1][l];
+                    self.acc[b][l] = -(self.g[l] * pendulum_sin(x[l] * self.inv_l[l]));
+                }
+            }
+        }
+    }
+
+    /// Half a kick of `hh` seconds on every lane: air drag (exact decay), then
+    /// contact forces and gravity. Body b is pushed left by contact b and right
+    /// by contact b−1; gravity is added after the contact push (as in the
+    /// shader's `push`).
+    #[inline(always)]
+    fn kick(&mut self, sh: &Shape, hh: &[R; L]) {
+        let nb = sh.nb;
+        if sh.dragged {
+            for l in 0..L {
+                let q = decay(self.drag[l] * hh[l]);
+                for b in 0..nb {
+                    self.v[b][l] = self.v[b][l] * q;
+                    self.cv[b][l] = self.cv[b][l] * q;
+                }
+            }
+        }
+        for b in 0..nb {
+            for l in 0..L {
+                let im = self.inv_m[b][l];
+                let mut inc = if b == 0 {
+                    -(hh[l] * self.f[0][l] * im)
+                } else if b == nb - 1 {
+                    hh[l] * self.f[nb - 2][l] * im
+                } else {
+                    hh[l] * (self.f[b - 1][l] - self.f[b][l]) * im
+                };
+                if sh.pend {
+                    inc = inc + hh[l] * self.acc[b][l];
+                }
+                add(&mut self.v[b][l], &mut self.cv[b][l], inc);
+            }
+        }
+    }
+
+    /// One step of every lane: velocity-Verlet substeps (kick, drift, forces,
+    /// kick) of sizes `w·step`.
+    #[inline(always)]
+    fn substeps(&mut self, sh: &Shape, weights: &[f64]) {
+        let half = R::of(0.5);
+        for &w in weights {
+            let w = R::of(w);
+            let mut ws = [R::zero(); L];
+            let mut hh = [R::zero(); L];
+            for l in 0..L {
+                ws[l] = w * self.step[l];
+                hh[l] = ws[l] * half;
+            }
+            self.kick(sh, &hh);
+            for c in 0..sh.nc {
+                for l in 0..L {
+                    let inc = ws[l] * (self.v[c][l] - self.v[c + 1][l]);
+                    add(&mut self.d[c][l], &mut self.cd[c][l], inc);
+                }
+            }
+            if sh.track_x {
+                for l in 0..L {
+                    let inc = ws[l] * self.v[0][l];
+                    add(&mut self.x0[l], &mut self.cx0[l], inc);
+                }
+            }
+            self.forces(sh);
+            self.kick(sh, &hh);
+        }
+    }
+
+    /// Lane l before its next step: free flight to the next onset (free line),
+    /// then the end checks. `Some(end)` when the run is over.
+    fn ready<O: Observer>(&mut self, sh: &Shape, l: usize, ch: &Chain, obs: &mut O) -> Option<End> {
+        let zero = R::zero();
+        let nc = sh.nc;
+        let book = &mut self.run[l];
+        if !self.closed[l] && !sh.pend {
             // Free flight: every contact open. Jump to the next onset, if any.
             let mut tau = R::infinity();
             let mut next = None;
             for c in 0..nc {
-                let r = s.v[c] - s.v[c + 1];
-                if r > v_floor {
-                    let dt = -s.d[c] / r;
+                let r = self.v[c][l] - self.v[c + 1][l];
+                if r > self.v_floor[l] {
+                    let dt = -self.d[c][l] / r;
                     if dt < tau {
                         tau = dt;
                         next = Some(c);
                     }
                 }
             }
-            let Some(next) = next else { break End::Settled };
+            let Some(next) = next else {
+                return Some(End::Settled);
+            };
             let mut tau64 = tau.to64();
-            let capped = t + tau64 > lim.max_time;
+            let capped = book.t + tau64 > book.lim.max_time;
             if capped {
-                tau64 = (lim.max_time - t).max(0.0);
+                tau64 = (book.lim.max_time - book.t).max(0.0);
                 tau = R::of(tau64);
             }
             if tau > zero {
                 for c in 0..nc {
-                    s.d[c] = s.d[c] + (s.v[c] - s.v[c + 1]) * tau;
+                    self.d[c][l] = self.d[c][l] + (self.v[c][l] - self.v[c + 1][l]) * tau;
                 }
-                if track_x {
-                    s.x0[0] = s.x0[0] + s.v[0] * tau;
+                if sh.track_x {
+                    self.x0[l] = self.x0[l] + self.v[0][l] * tau;
                 }
-                t += tau64;
-                observe(t, &s, obs);
+                book.t += tau64;
+                observe(sh, self, l, ch, obs);
             }
+            let book = &mut self.run[l];
             if capped {
-                break End::TimeCap;
+                return Some(End::TimeCap);
             }
-            s.d[next] = zero; // the onset, exactly
-            s.cd[next] = zero;
-            t_first.get_or_insert(t);
+            self.d[next][l] = zero; // the onset, exactly
+            self.cd[next][l] = zero;
+            book.t_first.get_or_insert(book.t);
         }
-        if pend && t >= lim.max_time {
-            break End::Duration;
+        let book = &mut self.run[l];
+        if sh.pend && book.t >= book.lim.max_time {
+            return Some(End::Duration);
         }
-        if steps >= lim.max_steps {
-            break End::StepCap;
+        if book.steps >= book.lim.max_steps {
+            return Some(End::StepCap);
         }
-        if t >= lim.max_time {
-            break End::TimeCap;
+        if book.t >= book.lim.max_time {
+            return Some(End::TimeCap);
         }
-        // The step: graded near kinks; on a pendulum long in free flight and
-        // landing exactly on the duration.
-        let mut step = if pend {
-            graded_step(
-                nc,
-                &s.d,
-                &s.v,
-                if closed { hr } else { h_free },
-                hr,
-                h_min,
-                t_scale,
-                quarters,
-            )
-        } else if plan.graded {
-            graded_step(nc, &s.d, &s.v, hr, hr, h_min, t_scale, quarters)
+        None
+    }
+
+    /// The step of every lane (0 for an idle one): graded near kinks; on a
+    /// pendulum long in free flight and landing exactly on the duration. Then
+    /// the overlaps at its start and, damped, each contact's χ.
+    #[inline(always)]
+    fn plan_steps(&mut self, sh: &Shape) {
+        let zero = R::zero();
+        let mut step = self.hr;
+        if sh.pend || sh.graded {
+            let mut s0 = self.hr;
+            if sh.pend {
+                for l in 0..L {
+                    if !self.closed[l] {
+                        s0[l] = self.h_free[l];
+                    }
+                }
+            }
+            step = graded_steps(
+                sh.nc,
+                &self.d,
+                &self.v,
+                &s0,
+                &self.hr,
+                &self.h_min,
+                &self.t_scale,
+                if sh.graded { sh.quarters } else { 0 },
+            );
+        }
+        for l in 0..L {
+            let book = &mut self.run[l];
+            book.last = false;
+            if book.task.is_none() {
+                step[l] = zero;
+            } else if sh.pend {
+                let rest = R::of(book.lim.max_time - book.t);
+                if rest <= step[l] {
+                    step[l] = rest;
+                    book.last = true;
+                }
+            }
+        }
+        self.step = step;
+        self.d0[..sh.nc].copy_from_slice(&self.d[..sh.nc]);
+        if sh.damped {
+            for c in 0..sh.nc {
+                for l in 0..L {
+                    // Hunt–Crossley: χ = a/v_imp, v_imp the closing speed the
+                    // contact closes with — or, if it is driven harder while
+                    // closed (a gentle touch, then a hit from behind), the
+                    // largest closing speed since.
+                    let chi = self.a_e[l] / (self.v[c][l] - self.v[c + 1][l]).max(self.v_floor[l]);
+                    self.chi[c][l] = if self.d[c][l] <= zero {
+                        chi
+                    } else {
+                        self.chi[c][l].min(chi)
+                    };
+                }
+            }
+        }
+    }
+
+    /// Every lane after its step: time, overlaps (vectorised), then, on the
+    /// lanes where a contact opened or closed, onsets and releases (located
+    /// inside the step by linear interpolation of δ; graded methods land on
+    /// them anyway). Returns the lanes whose velocities went non-finite.
+    #[inline(always)]
+    fn account(&mut self, sh: &Shape) -> [bool; L] {
+        let zero = R::zero();
+        let mut event = [false; L];
+        for c in 0..sh.nc {
+            for l in 0..L {
+                let (d0, d1) = (self.d0[c][l], self.d[c][l]);
+                let on = d1 > zero;
+                event[l] |= on != (d0 > zero);
+                if on {
+                    let d = d1.to64();
+                    self.max_ov[l] = self.max_ov[l].max(d);
+                    self.max_ratio[l] = self.max_ratio[l].max(d * self.inv_r[c][l]);
+                }
+            }
+        }
+        let lim = R::of(FINITE_LIMIT);
+        let mut bad = [false; L];
+        for b in 0..sh.nb {
+            for l in 0..L {
+                let v = self.v[b][l];
+                bad[l] |= v.is_nan() || v.abs() >= lim;
+            }
+        }
+        for l in 0..L {
+            let book = &mut self.run[l];
+            let h = self.step[l].to64();
+            let t_start = book.t;
+            book.t = if book.last {
+                book.lim.max_time
+            } else {
+                book.t + h
+            };
+            book.steps += 1;
+            if !event[l] {
+                continue;
+            }
+            for c in 0..sh.nc {
+                let (d0, d1) = (self.d0[c][l], self.d[c][l]);
+                if d1 > zero {
+                    if d0 <= zero {
+                        book.contacts += 1;
+                        book.t_first.get_or_insert(t_start);
+                    }
+                } else if d0 > zero {
+                    let (d0, d1) = (d0.to64(), d1.to64());
+                    let tr = t_start + h * d0 / (d0 - d1);
+                    book.t_release = Some(book.t_release.map_or(tr, |x: f64| x.max(tr)));
+                }
+            }
+        }
+        bad
+    }
+
+    /// The outcome of lane l's run, which ended with `end`.
+    fn finish(&self, sh: &Shape, l: usize, end: End, ch: &Chain) -> Run {
+        let book = &self.run[l];
+        let v: Vec<f64> = (0..sh.nb).map(|b| self.v[b][l].to64()).collect();
+        let overlap: Vec<f64> = (0..sh.nc).map(|c| self.d[c][l].to64()).collect();
+        let x = if sh.track_x {
+            ch.positions(self.x0[l].to64(), &overlap)
         } else {
-            hr
+            vec![f64::NAN; sh.nb]
         };
-        let mut last = false;
-        if pend {
-            let rest = R::of(lim.max_time - t);
-            if rest <= step {
-                step = rest;
-                last = true;
-            }
-        }
-        for c in 0..nc {
-            s.d0[c] = s.d[c];
-            if kn.damped {
-                // Hunt–Crossley: χ = a/v_imp, v_imp the closing speed the contact
-                // closes with — or, if it is driven harder while closed (a gentle
-                // touch, then a hit from behind), the largest closing speed since.
-                let chi = a_e / (s.v[c] - s.v[c + 1]).max(v_floor);
-                s.chi[c] = if s.d[c] <= zero {
-                    chi
-                } else {
-                    s.chi[c].min(chi)
-                };
-            }
-        }
-        // One step: velocity-Verlet substeps (kick, drift, forces, kick).
-        for &w in plan.weights {
-            let ws = R::of(w) * step;
-            let hh = ws * half;
-            kick(&kn, &mut s, hh);
-            for c in 0..nc {
-                add(&mut s.d, &mut s.cd, c, ws * (s.v[c] - s.v[c + 1]));
-            }
-            if track_x {
-                add(&mut s.x0, &mut s.cx0, 0, ws * s.v[0]);
-            }
-            closed = forces(&kn, &kc, &mut s);
-            kick(&kn, &mut s, hh);
-        }
-        let h = step.to64();
-        let t_start = t;
-        t = if last { lim.max_time } else { t + h };
-        steps += 1;
-        // Onsets, overlaps, releases (located inside the step by linear
-        // interpolation of δ; graded methods land on them anyway).
-        for c in 0..nc {
-            let (d0, d1) = (s.d0[c], s.d[c]);
-            if d1 > zero {
-                if d0 <= zero {
-                    contacts += 1;
-                    t_first.get_or_insert(t_start);
-                }
-                let d = d1.to64();
-                if d > max_ov {
-                    max_ov = d;
-                }
-                max_ratio = max_ratio.max(d * inv_r[c]);
-            } else if d0 > zero {
-                let (d0, d1) = (d0.to64(), d1.to64());
-                let tr = t_start + h * d0 / (d0 - d1);
-                t_release = Some(t_release.map_or(tr, |x: f64| x.max(tr)));
-            }
-        }
-        observe(t, &s, obs);
-        if s.v[..nb]
-            .iter()
-            .any(|v| v.is_nan() || v.abs() >= R::of(FINITE_LIMIT))
+        let settled = matches!(end, End::Settled | End::Duration);
+        let end = if settled
+            && (v.iter().chain(&overlap).any(|x| !x.is_finite())
+                || sh.track_x && x.iter().any(|x| !x.is_finite()))
         {
-            break End::NonFinite;
+            End::NonFinite
+        } else {
+            end
+        };
+        Run {
+            end,
+            v,
+            overlap,
+            steps: book.steps,
+            t: book.t,
+            t_first_contact: book.t_first,
+            t_last_release: book.t_release,
+            max_overlap: self.max_ov[l],
+            max_overlap_ratio: self.max_ratio[l],
+            x,
+            contacts: book.contacts,
         }
+    }
+}
+
+/// Report lane l's state to the observer (a traced run has one lane).
+#[inline(always)]
+fn observe<R: Real, O: Observer, const L: usize>(
+    sh: &Shape,
+    s: &Lanes<R, L>,
+    l: usize,
+    ch: &Chain,
+    obs: &mut O,
+) {
+    if O::ACTIVE {
+        let d: Vec<f64> = (0..sh.nc).map(|c| s.d[c][l].to64()).collect();
+        let x = ch.positions(s.x0[l].to64(), &d);
+        let v: Vec<f64> = (0..sh.nb).map(|b| s.v[b][l].to64()).collect();
+        obs.state(s.run[l].t, &x, &v);
+    }
+}
+
+/// Run the tasks of one group (`group`: indices into `tasks`, equal keys),
+/// `L` lanes at a time: a lane whose run ends takes the next task.
+#[inline(always)]
+fn run_lanes<R: Real, O: Observer, const TERMS: bool, const L: usize>(
+    tasks: &[Task],
+    group: &[usize],
+    out: &mut [Option<Run>],
+    obs: &mut O,
+) {
+    let first = &tasks[group[0]];
+    let ch0 = first.chain;
+    let nb = ch0.n_bodies();
+    let pend = TERMS && ch0.is_pendulum();
+    let sh = Shape {
+        nb,
+        nc: nb - 1,
+        pend,
+        damped: TERMS && ch0.damping_a > 0.0,
+        dragged: TERMS && ch0.air_drag > 0.0,
+        graded: first.plan.graded,
+        quarters: first.plan.grade_quarters,
+        // Body 0's displacement matters to gravity and to an observer; a free
+        // line in a sweep does without (its displacements are not reported).
+        track_x: pend || O::ACTIVE,
     };
-    let v: Vec<f64> = s.v[..nb].iter().map(|v| v.to64()).collect();
-    let overlap: Vec<f64> = s.d[..nc].iter().map(|d| d.to64()).collect();
-    let x = if track_x {
-        ch.positions(s.x0[0].to64(), &overlap)
+    let weights = first.plan.weights;
+    let mut s = Lanes::<R, L>::new();
+    let mut queue = group.iter().copied().peekable();
+    for l in 0..L {
+        if let Some(i) = queue.next() {
+            s.load(&sh, l, i, &tasks[i]);
+            observe(&sh, &s, l, tasks[i].chain, obs);
+        }
+    }
+    // The last runs of a group go on in narrower kernels: a long run alone
+    // in wide lanes would pay for all of them.
+    if L > 8 {
+        drive(&mut s, &sh, weights, &mut queue, 8, tasks, out, obs);
+        let mut t = s.narrow::<8>(&sh);
+        drive(&mut t, &sh, weights, &mut queue, 2, tasks, out, obs);
+        let mut u = t.narrow::<2>(&sh);
+        drive(&mut u, &sh, weights, &mut queue, 0, tasks, out, obs);
+    } else if L > 2 {
+        drive(&mut s, &sh, weights, &mut queue, 2, tasks, out, obs);
+        let mut u = s.narrow::<2>(&sh);
+        drive(&mut u, &sh, weights, &mut queue, 0, tasks, out, obs);
     } else {
-        vec![f64::NAN; nb]
-    };
-    let settled = matches!(end, End::Settled | End::Duration);
-    let end = if settled
-        && (v.iter().chain(&overlap).any(|x| !x.is_finite())
-            || track_x && x.iter().any(|x| !x.is_finite()))
-    {
-        End::NonFinite
-    } else {
-        end
-    };
-    Run {
-        end,
-        v,
-        overlap,
-        steps,
-        t,
-        t_first_contact: t_first,
-        t_last_release: t_release,
-        max_overlap: max_ov,
-        max_overlap_ratio: max_ratio,
-        x,
-        contacts,
+        drive(&mut s, &sh, weights, &mut queue, 0, tasks, out, obs);
+    }
+}
+
+/// Step the lanes until every run is over, refilling ended lanes from
+/// `queue`; return early once the queue is empty and at most `tail` lanes
+/// are still running.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn drive<R: Real, O: Observer, const L: usize>(
+    s: &mut Lanes<R, L>,
+    sh: &Shape,
+    weights: &[f64],
+    queue: &mut std::iter::Peekable<impl Iterator<Item = usize>>,
+    tail: usize,
+    tasks: &[Task],
+    out: &mut [Option<Run>],
+    obs: &mut O,
+) {
+    loop {
+        if queue.peek().is_none() && s.run.iter().filter(|b| b.task.is_some()).count() <= tail {
+            return;
+        }
+        let mut busy = false;
+        for l in 0..L {
+            while let Some(i) = s.run[l].task {
+                let Some(end) = s.ready(sh, l, tasks[i].chain, obs) else {
+                    busy = true;
+                    break;
+                };
+                out[i] = Some(s.finish(sh, l, end, tasks[i].chain));
+                s.next(sh, l, queue.next(), tasks, obs);
+            }
+        }
+        if !busy {
+            return;
+        }
+        s.plan_steps(sh);
+        s.substeps(sh, weights);
+        let bad = s.account(sh);
+        for l in 0..L {
+            let Some(i) = s.run[l].task else { continue };
+            observe(sh, s, l, tasks[i].chain, obs);
+            if bad[l] {
+                out[i] = Some(s.finish(sh, l, End::NonFinite, tasks[i].chain));
+                s.next(sh, l, queue.next(), tasks, obs);
+            }
+        }
     }
 }
