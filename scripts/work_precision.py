@@ -11,9 +11,10 @@ printed and written as rows `reference-check-*`).
   python3 -m venv /tmp/peer && /tmp/peer/bin/pip install numpy numba matplotlib
   cargo build --release
   XDG_RUNTIME_DIR=/tmp WGPU_BACKEND=vulkan \\
-    /tmp/peer/bin/python scripts/work_precision.py --out results/work_precision.csv --plot results/work_precision.png
+    /tmp/peer/bin/python scripts/work_precision.py --out results/work_precision.csv \\
+    --plot results/work_precision.png --speedup results/work_precision_speedup.csv
 """
-import argparse, csv, os, re, statistics, subprocess, sys, time
+import argparse, csv, math, os, re, statistics, subprocess, sys, time
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 CRADLE = os.path.join(ROOT, "target", "release", "cradle")
@@ -27,14 +28,17 @@ def read(path):
     return [[float(r[f"v_{i}"]) for i in range(5)] for r in rows], sum(int(r.get("steps", 0) or 0) for r in rows)
 
 
-def cradle(tmp, method, tol, precision="f64", backend="cpu"):
+def cradle(tmp, method, tol, precision="f64", backend="cpu", repeat=1):
+    """Run the sweep `repeat` times (the same outputs each time); median wall."""
     out = os.path.join(tmp, f"{method}_{tol:g}_{precision}_{backend}.csv")
-    t0 = time.perf_counter()
-    subprocess.run([CRADLE, "sweep", GRID, "--out", out, "--backend", backend, "--method", method,
-                    "--tolerance", str(tol), "--precision", precision], check=True, stderr=subprocess.DEVNULL)
-    wall = time.perf_counter() - t0
+    walls = []
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        subprocess.run([CRADLE, "sweep", GRID, "--out", out, "--backend", backend, "--method", method,
+                        "--tolerance", str(tol), "--precision", precision], check=True, stderr=subprocess.DEVNULL)
+        walls.append(time.perf_counter() - t0)
     v, steps = read(out)
-    return v, wall, steps
+    return v, statistics.median(walls), steps
 
 
 def errors(v, ref):
@@ -45,6 +49,7 @@ def main():
     p = argparse.ArgumentParser()
     p.add_argument("--out", required=True)
     p.add_argument("--plot")
+    p.add_argument("--speedup", help="CSV: every method's wall time and speedup at each peer row's error")
     p.add_argument("--tmp", default="/tmp/work_precision")
     p.add_argument("--no-gpu", action="store_true")
     a = p.parse_args()
@@ -66,18 +71,20 @@ def main():
     add("reference-check-yoshida6", "yoshida6", "cpu", "f64", 1e-11, check6, 0, 0)
     add("reference-check-verlet-richardson", "verlet", "cpu", "f64", "", rich, 0, 0)
 
-    for div in [1000.0, 3000.0, 10000.0]:
+    for div in [1000.0, 3000.0, 10000.0, 30000.0, 100000.0]:
         out = os.path.join(a.tmp, f"numba_{div:g}.csv")
         res = subprocess.run([sys.executable, PEER, "--dt-div", str(div), "--out", out], check=True, capture_output=True, text=True)
         wall = float(re.search(r": ([0-9.]+) s,", res.stdout).group(1))  # the peer's own timing, JIT excluded
         steps = int(re.search(r"([0-9,]+) chain steps", res.stdout).group(1).replace(",", ""))
         add(f"numba dt=t_c/{div:g}", "numba-verlet", "numba", "f64", "", read(out)[0], wall, steps)
 
-    plan = {"verlet": [1e-4, 1e-5, 1e-6, 1e-7], "suzuki4": [1e-4, 1e-6, 1e-8, 1e-10],
-            "yoshida4": [1e-4, 1e-6, 1e-8], "yoshida6": [1e-4, 1e-6, 1e-8, 1e-10]}
+    decades = [1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10]
+    plan = {"verlet": [1e-4, 1e-5, 1e-6, 1e-7], "suzuki4": decades,
+            "yoshida4": [1e-4, 1e-6, 1e-8], "yoshida6": decades}
     for method, tols in plan.items():
         for tol in tols:
-            add("cradle", method, "cpu", "f64", tol, *cradle(a.tmp, method, tol))
+            # CPU rows: median of 3 runs (short runs on 2 cores are noisy)
+            add("cradle", method, "cpu", "f64", tol, *cradle(a.tmp, method, tol, repeat=3))
     for method in ["verlet", "suzuki4"]:
         add("cradle", method, "cpu", "f32", 1e-5, *cradle(a.tmp, method, 1e-5, "f32"))
     if not a.no_gpu:
@@ -88,6 +95,37 @@ def main():
         w = csv.DictWriter(fh, fieldnames=list(rows[0].keys()))
         w.writeheader()
         w.writerows(rows)
+
+    # At equal error: each cradle method's wall time at each peer row's max
+    # error, interpolated log-log between the method's two bracketing rows
+    # (CPU, f64), and the measured order (slope of log error over log steps).
+    speed = []
+    peers = [r for r in rows if r["backend"] == "numba"]
+    for method in plan:
+        pts = sorted((r["max_error"], r["wall_s"], r["steps"]) for r in rows
+                     if r["run"] == "cradle" and r["method"] == method and r["backend"] == "cpu"
+                     and r["precision"] == "f64")
+        lx = [math.log(p[2]) for p in pts]
+        ly = [math.log(p[0]) for p in pts]
+        mx, my = statistics.mean(lx), statistics.mean(ly)
+        order = -sum((x - mx) * (y - my) for x, y in zip(lx, ly)) / sum((x - mx) ** 2 for x in lx)
+        for pr in peers:
+            e = pr["max_error"]
+            wall = None
+            for (e1, w1, _), (e0, w0, _) in zip(pts, pts[1:]):
+                if e1 <= e <= e0:  # e1 < e0: the finer row first
+                    f = (math.log(e) - math.log(e0)) / (math.log(e1) - math.log(e0))
+                    wall = math.exp(math.log(w0) + f * (math.log(w1) - math.log(w0)))
+            speed.append(dict(method=method, measured_order=round(order, 2), peer=pr["run"],
+                              peer_max_error=e, peer_wall_s=pr["wall_s"],
+                              cradle_wall_s=round(wall, 3) if wall else "",
+                              speedup=round(pr["wall_s"] / wall, 1) if wall else ""))
+            print(*speed[-1].values(), sep="\t", flush=True)
+    if a.speedup:
+        with open(a.speedup, "w", newline="") as fh:
+            w = csv.DictWriter(fh, fieldnames=list(speed[0].keys()))
+            w.writeheader()
+            w.writerows(speed)
 
     if a.plot:
         import matplotlib
