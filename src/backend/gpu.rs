@@ -504,7 +504,7 @@ impl Backend for Gpu {
                     Job::Run { chain, solver }
                         if solver.precision == p
                             && solver.model == Model::Hertz
-                            && (chain.is_pendulum() || chain.is_dissipative()) == terms =>
+                            && chain.needs_terms() == terms =>
                     {
                         Some((i, (chain, solver)))
                     }

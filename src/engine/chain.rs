@@ -100,6 +100,13 @@ impl Chain {
         self.damping_a > 0.0 || self.air_drag > 0.0
     }
 
+    /// Whether integrating it needs the gravity, damping or drag terms: both
+    /// integrators (CPU lanes and shader) have a variant without them for
+    /// elastic free lines.
+    pub fn needs_terms(&self) -> bool {
+        self.is_pendulum() || self.is_dissipative()
+    }
+
     /// Angular frequency √(g/L) of small swings (rad/s); 0 for a free line.
     pub fn omega(&self) -> f64 {
         (self.gravity / self.length).sqrt()

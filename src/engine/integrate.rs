@@ -253,33 +253,31 @@ impl Task<'_> {
     /// terms (everything else may differ from lane to lane).
     fn key(&self) -> (usize, usize, usize, bool, u32, bool, bool, bool) {
         let ch = self.chain;
-        let terms = ch.is_pendulum() || ch.is_dissipative();
         (
             ch.n_bodies(),
             self.plan.weights.as_ptr() as usize,
             self.plan.weights.len(),
             self.plan.graded,
             self.plan.grade_quarters,
-            terms && ch.is_pendulum(),
-            terms && ch.damping_a > 0.0,
-            terms && ch.air_drag > 0.0,
+            ch.is_pendulum(),
+            ch.damping_a > 0.0,
+            ch.air_drag > 0.0,
         )
     }
 }
 
-/// Scenes integrated side by side by the CPU: lane l of every array below
-/// belongs to one run. Every lane takes its own steps, but the substeps of all
-/// lanes are one loop, which the compiler turns into SIMD and the CPU
-/// overlaps (a single chain waits on each √δ in turn).
+/// Chains of up to 12 bodies integrated side by side per batch (longer ones:
+/// 4, so that every lane's state stays in L1 cache).
 pub const LANES: usize = 32;
 
 /// Integrate every task, [`LANES`] at a time; results in task order. The
 /// same arithmetic, operation for operation, as [`integrate`] on each.
 pub fn integrate_batch<R: Real>(tasks: &[Task]) -> Vec<Run> {
+    let keys: Vec<_> = tasks.iter().map(Task::key).collect();
     let mut order: Vec<usize> = (0..tasks.len()).collect();
-    order.sort_by_key(|&i| tasks[i].key());
+    order.sort_by_key(|&i| keys[i]);
     let mut out: Vec<Option<Run>> = vec![None; tasks.len()];
-    for group in order.chunk_by(|&a, &b| tasks[a].key() == tasks[b].key()) {
+    for group in order.chunk_by(|&a, &b| keys[a] == keys[b]) {
         #[cfg(target_arch = "x86_64")]
         if is_x86_feature_detected!("avx") {
             // SAFETY: the CPU has AVX (checked just above).
@@ -306,9 +304,8 @@ unsafe fn run_group_avx<R: Real>(tasks: &[Task], group: &[usize], out: &mut [Opt
 #[inline(always)]
 fn run_group<R: Real>(tasks: &[Task], group: &[usize], out: &mut [Option<Run>]) {
     let ch = tasks[group[0]].chain;
-    let terms = ch.is_pendulum() || ch.is_dissipative();
     // Long chains in fewer lanes: the state of every lane stays in L1 cache.
-    match (terms, ch.n_bodies() <= 12) {
+    match (ch.needs_terms(), ch.n_bodies() <= 12) {
         (false, true) => run_lanes::<R, Silent, false, LANES>(tasks, group, out, &mut Silent),
         (false, false) => run_lanes::<R, Silent, false, 4>(tasks, group, out, &mut Silent),
         (true, true) => run_lanes::<R, Silent, true, LANES>(tasks, group, out, &mut Silent),
@@ -332,7 +329,7 @@ pub fn integrate<R: Real, O: Observer>(
     let mut out = vec![None];
     // Work a scene does not need is not compiled in: an elastic free line
     // runs a variant without the gravity, damping and drag terms.
-    if ch.is_pendulum() || ch.is_dissipative() {
+    if ch.needs_terms() {
         run_lanes::<R, O, true, 1>(&tasks, &[0], &mut out, obs);
     } else {
         run_lanes::<R, O, false, 1>(&tasks, &[0], &mut out, obs);

@@ -51,7 +51,7 @@ impl Model {
         if self == Model::Hertz {
             return None;
         }
-        if chain.is_pendulum() || chain.is_dissipative() {
+        if chain.needs_terms() {
             return Some(format!(
                 "the {name} model is elastic and on a free line: remove [pendulum] and [damping]"
             ));
