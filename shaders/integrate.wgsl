@@ -40,7 +40,7 @@ struct Header {
     nb: u32,
     // offset of this scene's parameters in `params`: h, v_floor, max_time,
     // one (= 1.0), h_min, t_scale, h_free, g, inv_l, drag, a_e,
-    // weights[n_weights], inv_m[nb], k[nc], inv_r[nc], gap[nc]
+    // weights[n_weights], inv_m[nb], k[nc], inv_r[nc], gap[nc], imp_t[nc], imp_d[nc]
     input: u32,
     // offset of its state (the results once it ends) in `out_real`: v[nb], d[nc],
     // cv[nb], cd[nc], chi[nc], f[nc], t, t_first (−1: none), t_release (−1: none),
@@ -53,13 +53,16 @@ struct Header {
     quarters: u32,
     // steps per dispatch, so that one dispatch stays under ~60,000 loop iterations
     budget: u32,
-    // FLAG_*: pendulum, damped contacts, air drag
+    // FLAG_*: pendulum, damped contacts, air drag, isolated impacts in closed form
     flags: u32,
 }
 
 const FLAG_PENDULUM: u32 = 1u;
 const FLAG_DAMPED: u32 = 2u;
 const FLAG_DRAG: u32 = 4u;
+const FLAG_EXACT: u32 = 8u;
+// engine::contact::FIFTH_ROOT_SCALINGS
+const FIFTH_ROOT_SCALINGS: u32 = 200u;
 
 @group(0) @binding(0) var<storage, read> headers: array<Header>;
 @group(0) @binding(1) var<storage, read> params: array<real>;
@@ -79,6 +82,9 @@ var<private> inv_m: array<real, MAX_BALLS>;
 var<private> k: array<real, MAX_BALLS>;
 var<private> inv_r: array<real, MAX_BALLS>;
 var<private> gap: array<real, MAX_BALLS>;
+// closed-form impact coefficients of each contact (engine::contact::impact_coefficients)
+var<private> imp_t: array<real, MAX_BALLS>;
+var<private> imp_d: array<real, MAX_BALLS>;
 // body 0's displacement and its compensation, simulated time and its compensation
 var<private> x0: array<real, 1>;
 var<private> cx0: array<real, 1>;
@@ -256,6 +262,92 @@ fn graded_step(s0: real, h: real, h_min: real, tc: real, quarters: u32) -> real 
     return s;
 }
 
+// engine::contact::fifth_root — scale by powers of 32 into [1, 32), quadratic
+// guess, five Newton steps.
+fn fifth_root(x: real) -> real {
+    var y = x;
+    var s = real(1.0);
+    var n = 0u;
+    while (y >= real(32.0) && n < FIFTH_ROOT_SCALINGS) {
+        y = y / real(32.0);
+        s = s * real(2.0);
+        n += 1u;
+    }
+    while (y < real(1.0) && n < FIFTH_ROOT_SCALINGS) {
+        y = y * real(32.0);
+        s = s * real(0.5);
+        n += 1u;
+    }
+    var w = real(1.1) + y * (real(0.0542) - y * real(0.00086));
+    for (var j = 0u; j < 5u; j++) {
+        let w2 = w * w;
+        w = (real(4.0) * w + y / (w2 * w2)) * real(0.2);
+    }
+    return w * s;
+}
+
+// Closed-form impact results: time taken, largest overlap.
+struct Impact {
+    taken: bool,
+    tc: real,
+    dmax: real,
+}
+
+// Velocity of body i during the impact of a and b: theirs move together at vcm.
+fn impact_speed(i: u32, a: u32, vcm: real) -> real {
+    if (i == a || i == a + 1u) {
+        return vcm;
+    }
+    return v[i];
+}
+
+// engine::integrate::Lanes::exact_impact — the isolated impact that contact c
+// starts, in one jump, if nothing else can touch while it lasts.
+fn exact_impact(c: u32) -> Impact {
+    let zero = real(0.0);
+    let a = c;
+    let b = c + 1u;
+    let va = v[a];
+    let vb = v[b];
+    let u = va - vb;
+    let ia = inv_m[a];
+    let ib = inv_m[b];
+    let fa = ia / (ia + ib);
+    let fb = ib / (ia + ib);
+    let w = fifth_root(u);
+    let tc = imp_t[c] / w;
+    let va2 = va - (fa + fa) * u;
+    let vb2 = vb + (fb + fb) * u;
+    let vcm = va - fa * u;
+    var out = Impact(false, zero, zero);
+    if (c > 0u && d[c - 1u] + max(v[a - 1u] - min(va, va2), zero) * tc > zero) {
+        return out;
+    }
+    if (b < nc && d[b] + max(max(vb, vb2) - v[b + 1u], zero) * tc > zero) {
+        return out;
+    }
+    for (var j = 0u; j < nc; j++) {
+        if (j + 1u < c || j > b) {
+            if (d[j] + (v[j] - v[j + 1u]) * tc > zero) {
+                return out;
+            }
+        }
+    }
+    for (var j = 0u; j < nc; j++) {
+        if (j != c) {
+            d[j] = d[j] + (impact_speed(j, a, vcm) - impact_speed(j + 1u, a, vcm)) * tc;
+        }
+    }
+    v[a] = va2;
+    v[b] = vb2;
+    cv[a] = zero;
+    cv[b] = zero;
+    out.taken = true;
+    out.tc = tc;
+    out.dmax = imp_d[c] * u / w;
+    return out;
+}
+
 // engine::integrate::integrate
 fn integrate(i: u32) {
     if (out_u32[3u * i] != END_RUNNING) {
@@ -276,6 +368,7 @@ fn integrate(i: u32) {
     inv_l = params[p0 + 8u];
     drag = params[p0 + 9u];
     let a_e = params[p0 + 10u];
+    let exact = (hd.flags & FLAG_EXACT) != 0u;
     pend = TERMS && (hd.flags & FLAG_PENDULUM) != 0u;
     damped = TERMS && (hd.flags & FLAG_DAMPED) != 0u;
     dragged = TERMS && (hd.flags & FLAG_DRAG) != 0u;
@@ -294,6 +387,8 @@ fn integrate(i: u32) {
         k[c] = params[q + c];
         inv_r[c] = params[q + nc + c];
         gap[c] = params[q + 2u * nc + c];
+        imp_t[c] = params[q + 3u * nc + c];
+        imp_d[c] = params[q + 4u * nc + c];
         d[c] = out_real[o + nb + c];
         cd[c] = out_real[o + 2u * nb + nc + c];
         chi[c] = out_real[o + 2u * nb + 2u * nc + c];
@@ -356,6 +451,18 @@ fn integrate(i: u32) {
             cd[next] = real(0.0);
             if (t_first < real(0.0)) {
                 t_first = tt[0];
+            }
+            // An isolated impact is over in one jump; then free flight again.
+            if (exact) {
+                let imp = exact_impact(next);
+                if (imp.taken) {
+                    max_ov = max(max_ov, imp.dmax);
+                    max_ratio = max(max_ratio, imp.dmax * inv_r[next]);
+                    tt[0] = tt[0] + imp.tc;
+                    contacts += 1u;
+                    t_release = max(t_release, tt[0]);
+                    continue;
+                }
             }
         }
         if (pend && tt[0] >= max_time) {

@@ -110,6 +110,81 @@ fn two_ball_contact_time_and_overlap_match_hertz() {
     );
 }
 
+#[test]
+fn isolated_impacts_in_closed_form_match_integrated_ones() {
+    // Two balls: under a tolerance the impact is one jump (0 steps); with a
+    // fixed step it is integrated. Velocities, duration and overlap agree.
+    let m = steel_mass();
+    for (ratio, v) in [(1.0, 1.0f64), (0.1, 0.01), (3.7, 7.0), (10.0, 0.3)] {
+        let s = scene(&format!(
+            "balls = 2\nmass = [{m}, {}]\nvelocity = [{v}, {}]",
+            ratio * m,
+            -0.2 * v
+        ));
+        let exact = solve(&s, None, Precision::F64);
+        assert_eq!(
+            (exact.status, exact.steps, exact.contacts),
+            (Status::Ok, 0, 1)
+        );
+        let tc = Chain::from_scene(&s).unwrap().time_scale().unwrap();
+        let step = StepRule::Dt(tc / 2000.0);
+        let int = solve_with(&s, Some(step), Precision::F64, Some(Method::Yoshida6));
+        assert!(int.steps > 1000, "{}", int.steps);
+        let v_in = v.abs();
+        assert!(
+            err(
+                &exact,
+                &int.v.iter().map(|x| x / v_in).collect::<Vec<_>>(),
+                v_in
+            ) < 1e-10
+        );
+        let (de, di) = (
+            exact.t_release - exact.t_contact,
+            int.t_release - int.t_contact,
+        );
+        assert!((de / di - 1.0).abs() < 1e-6, "duration {de} vs {di}");
+        let (oe, oi) = (exact.max_overlap_m, int.max_overlap_m);
+        assert!((oe / oi - 1.0).abs() < 1e-6, "overlap {oe} vs {oi}");
+        assert!(oe >= oi, "the steps sample below the true maximum");
+    }
+}
+
+#[test]
+fn impacts_a_neighbour_can_reach_are_integrated() {
+    // Ball 0 hits ball 1 while ball 2 waits at gap g: for small g ball 1
+    // reaches it before the first impact is over, so that impact is not
+    // isolated and must be integrated. At every g the tolerance run (closed
+    // forms where allowed) agrees with a fine fixed-step integration (none).
+    let m = steel_mass();
+    for masses in [[m, m, m], [m, 0.3 * m, 2.0 * m]] {
+        let mut closed_form_seen = false;
+        for g in [0.0, 1e-6, 1e-5, 3e-5, 5e-5, 8e-5, 1.2e-4, 1e-3] {
+            let s = scene(&format!(
+                "balls = 3\nmass = [{}, {}, {}]\ngap = [0, {g}]\nvelocity = [1.0, 0, 0]",
+                masses[0], masses[1], masses[2]
+            ));
+            let tol = solve(&s, Some(StepRule::Tolerance(1e-9)), Precision::F64);
+            let tc = Chain::from_scene(&s).unwrap().time_scale().unwrap();
+            let step = StepRule::Dt(tc / 4000.0);
+            let int = solve_with(&s, Some(step), Precision::F64, Some(Method::Yoshida6));
+            assert!(
+                err(&tol, &int.v, 1.0) < 1e-8,
+                "g = {g}: {:?} vs {:?}",
+                tol.v,
+                int.v
+            );
+            if g < 3e-5 {
+                assert!(tol.steps > 0, "g = {g}: the first impact is not isolated");
+            }
+            closed_form_seen |= tol.steps == 0;
+        }
+        assert!(
+            closed_form_seen,
+            "wide gaps: every impact isolated, 0 steps"
+        );
+    }
+}
+
 const ONE_INTO_FOUR: [f64; 5] = [-0.07109, -0.03027, -0.01446, 0.12704, 0.98878];
 
 #[test]
@@ -132,7 +207,8 @@ fn wide_gaps_give_hard_sphere_answers() {
 
 #[test]
 fn free_flight_costs_no_steps() {
-    // Two well-separated impacts cost the same steps whatever the gap width.
+    // Two well-separated impacts cost the same steps whatever the gap width
+    // (none: isolated impacts are taken in closed form).
     let a = run("balls = 3\ngap = 1e-3\nvelocity = [1e-3, 0, 0]");
     let b = run("balls = 3\ngap = 1e-4\nvelocity = [1e-3, 0, 0]");
     assert_eq!(a.status, Status::Ok);

@@ -4,7 +4,7 @@
 //! a degree of freedom, it is not a stiff spring. Contact c joins body c and
 //! body c+1; its stiffness comes from the two boundary balls (SPEC §2).
 
-use super::contact::{contact_time, hertz_stiffness, hunt_crossley_a};
+use super::contact::{contact_time, hertz_stiffness, hunt_crossley_a, impact_coefficients};
 use crate::error::InputError;
 use crate::scene::Scene;
 
@@ -130,6 +130,13 @@ impl Chain {
     pub fn v_in(&self) -> f64 {
         let v = self.v0.iter().fold(0.0f64, |m, v| m.max(v.abs()));
         self.x0.iter().fold(v, |m, &x| m.max(self.swing_speed(x)))
+    }
+
+    /// Closed-form impact coefficients of contact c
+    /// ([`super::contact::impact_coefficients`]).
+    pub fn impact_coefficients(&self, c: usize) -> (f64, f64) {
+        let (a, b) = (self.mass[c], self.mass[c + 1]);
+        impact_coefficients(a * b / (a + b), self.k[c])
     }
 
     /// Shortest time scale of the chain (s): the two-body Hertz contact time of

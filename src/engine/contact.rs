@@ -150,9 +150,77 @@ pub fn max_overlap(mu: f64, k: f64, v: f64) -> f64 {
     (5.0 * mu * v * v / (4.0 * k)).powf(0.4)
 }
 
+/// Coefficients (a, b) of an isolated two-body Hertz impact in closed form:
+/// at approach speed u it lasts t_c = a/u^{1/5} and reaches δ_max =
+/// b·u/u^{1/5} (s, m). The integrators take such an impact in one jump
+/// (`integrate`'s `exact_impact`), so both get these from the host.
+pub fn impact_coefficients(mu: f64, k: f64) -> (f64, f64) {
+    (
+        CONTACT_TIME_CONST * (mu * mu / (k * k)).powf(0.2),
+        (1.25 * mu / k).powf(0.4),
+    )
+}
+
+/// x^{1/5} for x > 0, from +, −, ×, ÷ only, the same operations as
+/// `fifth_root` in the shader (SPIR-V has no f64 pow; f64 `pow` on some
+/// drivers is garbage): x scaled by powers of 32 into [1, 32) (exact), a
+/// quadratic first guess, five Newton steps (relative error < 1e-14 in f64).
+#[inline(always)]
+pub fn fifth_root<R: Real>(x: R) -> R {
+    let (one, n32) = (R::one(), R::of(32.0));
+    let (mut y, mut s) = (x, one);
+    let mut n = 0;
+    while y >= n32 && n < FIFTH_ROOT_SCALINGS {
+        y = y / n32;
+        s = s * R::of(2.0);
+        n += 1;
+    }
+    while y < one && n < FIFTH_ROOT_SCALINGS {
+        y = y * n32;
+        s = s * R::of(0.5);
+        n += 1;
+    }
+    let mut w = R::of(1.1) + y * (R::of(0.0542) - y * R::of(0.00086));
+    for _ in 0..5 {
+        let w2 = w * w;
+        w = (R::of(4.0) * w + y / (w2 * w2)) * R::of(0.2);
+    }
+    w * s
+}
+
+/// Most scalings by 32 in [`fifth_root`]: enough for any speed from 1e-300
+/// to 1e300 m/s; beyond, the root is wrong but finite (both twins alike).
+pub const FIFTH_ROOT_SCALINGS: u32 = 200;
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn fifth_root_is_accurate_over_every_speed_scale() {
+        let mut x = 1.3e-14f64;
+        while x < 1e15 {
+            let r = fifth_root(x);
+            assert!((r / x.powf(0.2) - 1.0).abs() < 1e-14, "{x}: {r}");
+            let r32 = fifth_root(x as f32) as f64;
+            assert!((r32 / x.powf(0.2) - 1.0).abs() < 1e-6, "{x}: {r32}");
+            x *= 1.37;
+        }
+        for x in [1.0f64, 32.0, 1024.0, 1.0 / 32.0] {
+            assert!((fifth_root(x) / x.powf(0.2) - 1.0).abs() < 1e-15, "{x}");
+        }
+    }
+
+    #[test]
+    fn impact_coefficients_give_contact_time_and_overlap() {
+        let (mu, k) = (0.032, 1.7e10);
+        let (a, b) = impact_coefficients(mu, k);
+        for u in [1e-3, 0.7, 5.0] {
+            let w = fifth_root(u);
+            assert!((a / w / contact_time(mu, k, u) - 1.0).abs() < 1e-14);
+            assert!((b * u / w / max_overlap(mu, k, u) - 1.0).abs() < 1e-14);
+        }
+    }
 
     #[test]
     fn contact_time_constant_matches_gamma_formula() {

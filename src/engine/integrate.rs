@@ -26,7 +26,7 @@
 //! (`contact::contact_force`, χ set from each contact's closing speed when it
 //! closes, lowered if it is later driven closed faster) and air drag (the exact decay e^{−γ·s} in every kick).
 
-use super::contact::{contact_force, hertz_force};
+use super::contact::{contact_force, fifth_root, hertz_force};
 use super::real::Real;
 use super::Chain;
 use crate::scene::MAX_BALLS;
@@ -181,6 +181,9 @@ pub struct StepPlan {
     pub settle_rel: f64,
     /// Pendulum: the step (s) while every contact is open; unused on a free line.
     pub h_free: f64,
+    /// Take isolated two-body impacts in closed form (elastic free lines
+    /// under a tolerance; a fixed `dt` integrates every impact).
+    pub exact: bool,
 }
 
 /// The step each lane takes now, at most `s0`. The Hertz force has a δ^{3/2} kink
@@ -388,6 +391,11 @@ struct Lanes<R, const L: usize> {
     max_ov: [f64; L],
     max_ratio: [f64; L],
     inv_r: [[f64; L]; MAX_BALLS],
+    /// Closed-form impact coefficients of each contact
+    /// ([`super::contact::impact_coefficients`]).
+    imp_t: [[R; L]; MAX_BALLS],
+    imp_d: [[R; L]; MAX_BALLS],
+    exact: [bool; L],
     run: [Book; L],
 }
 
@@ -462,6 +470,9 @@ impl<R: Real, const L: usize> Lanes<R, L> {
             max_ov: [0.0; L],
             max_ratio: [0.0; L],
             inv_r: [[0.0; L]; MAX_BALLS],
+            imp_t: z,
+            imp_d: z,
+            exact: [false; L],
             run: [IDLE; L],
         })
     }
@@ -486,7 +497,11 @@ impl<R: Real, const L: usize> Lanes<R, L> {
             self.chi[c][l] = zero;
             self.f[c][l] = zero;
             self.inv_r[c][l] = 1.0 / ch.r_min[c];
+            let (a, b) = ch.impact_coefficients(c);
+            self.imp_t[c][l] = R::of(a);
+            self.imp_d[c][l] = R::of(b);
         }
+        self.exact[l] = plan.exact;
         self.x0[l] = R::of(ch.x0[0]);
         self.cx0[l] = zero;
         self.g[l] = R::of(ch.gravity);
@@ -544,6 +559,8 @@ impl<R: Real, const L: usize> Lanes<R, L> {
             to.gap[c][m] = self.gap[c][l];
             to.kc[c][m] = self.kc[c][l];
             to.inv_r[c][m] = self.inv_r[c][l];
+            to.imp_t[c][m] = self.imp_t[c][l];
+            to.imp_d[c][m] = self.imp_d[c][l];
         }
         to.x0[m] = self.x0[l];
         to.cx0[m] = self.cx0[l];
@@ -558,6 +575,7 @@ impl<R: Real, const L: usize> Lanes<R, L> {
         to.t_scale[m] = self.t_scale[l];
         to.step[m] = self.step[l];
         to.closed[m] = self.closed[l];
+        to.exact[m] = self.exact[l];
         to.max_ov[m] = self.max_ov[l];
         to.max_ratio[m] = self.max_ratio[l];
         to.run[m] = self.run[l];
@@ -704,14 +722,71 @@ impl<R: Real, const L: usize> Lanes<R, L> {
         }
     }
 
+    /// The impact that contact c (open, just touching, closing) starts, in
+    /// closed form, if nothing else can touch while it lasts: bodies a = c
+    /// and b = c+1 leave with the elastic two-body velocities after the
+    /// two-body contact time t_c, both having moved V_cm·t_c (the overlap is
+    /// 0 at both ends), every other body v·t_c. Isolated: the neighbour
+    /// contacts stay open even if a and b moved at the extreme speeds they
+    /// pass through, and no other contact closes within t_c. Returns whether
+    /// it was taken; the same operations as `exact_impact` in the shader.
+    fn exact_impact(&mut self, sh: &Shape, l: usize, c: usize) -> bool {
+        let zero = R::zero();
+        let (a, b) = (c, c + 1);
+        let (va, vb) = (self.v[a][l], self.v[b][l]);
+        let u = va - vb;
+        let (ia, ib) = (self.inv_m[a][l], self.inv_m[b][l]);
+        let fa = ia / (ia + ib); // m_b / (m_a + m_b)
+        let fb = ib / (ia + ib); // m_a / (m_a + m_b)
+        let w = fifth_root(u);
+        let tc = self.imp_t[c][l] / w;
+        let va2 = va - (fa + fa) * u;
+        let vb2 = vb + (fb + fb) * u;
+        let vcm = va - fa * u;
+        if c > 0 && self.d[c - 1][l] + (self.v[a - 1][l] - va.min(va2)).max(zero) * tc > zero {
+            return false;
+        }
+        if b < sh.nc && self.d[b][l] + (vb.max(vb2) - self.v[b + 1][l]).max(zero) * tc > zero {
+            return false;
+        }
+        let speed =
+            |v: &[[R; L]; MAX_BALLS], i: usize| if i == a || i == b { vcm } else { v[i][l] };
+        for j in 0..sh.nc {
+            if (j + 1 < c || j > b) && self.d[j][l] + (self.v[j][l] - self.v[j + 1][l]) * tc > zero
+            {
+                return false;
+            }
+        }
+        for j in 0..sh.nc {
+            if j != c {
+                self.d[j][l] = self.d[j][l] + (speed(&self.v, j) - speed(&self.v, j + 1)) * tc;
+            }
+        }
+        if sh.track_x {
+            self.x0[l] = self.x0[l] + speed(&self.v, 0) * tc;
+        }
+        self.v[a][l] = va2;
+        self.v[b][l] = vb2;
+        self.cv[a][l] = zero;
+        self.cv[b][l] = zero;
+        let dmax = (self.imp_d[c][l] * u / w).to64();
+        self.max_ov[l] = self.max_ov[l].max(dmax);
+        self.max_ratio[l] = self.max_ratio[l].max(dmax * self.inv_r[c][l]);
+        let book = &mut self.run[l];
+        book.t += tc.to64();
+        book.contacts += 1;
+        book.t_release = Some(book.t_release.map_or(book.t, |x: f64| x.max(book.t)));
+        true
+    }
+
     /// Lane l before its next step: free flight to the next onset (free line),
     /// then the end checks. `Some(end)` when the run is over.
     fn ready<O: Observer>(&mut self, sh: &Shape, l: usize, ch: &Chain, obs: &mut O) -> Option<End> {
         let zero = R::zero();
         let nc = sh.nc;
-        let book = &mut self.run[l];
-        if !self.closed[l] && !sh.pend {
+        while !self.closed[l] && !sh.pend {
             // Free flight: every contact open. Jump to the next onset, if any.
+            let book = &mut self.run[l];
             let mut tau = R::infinity();
             let mut next = None;
             for c in 0..nc {
@@ -750,6 +825,11 @@ impl<R: Real, const L: usize> Lanes<R, L> {
             self.d[next][l] = zero; // the onset, exactly
             self.cd[next][l] = zero;
             book.t_first.get_or_insert(book.t);
+            // An isolated impact is over in one jump; then free flight again.
+            if !(self.exact[l] && self.exact_impact(sh, l, next)) {
+                break;
+            }
+            observe(sh, self, l, ch, obs);
         }
         let book = &mut self.run[l];
         if sh.pend && book.t >= book.lim.max_time {

@@ -39,6 +39,7 @@ pub const UNSTEPPED: StepPlan = StepPlan {
     t_scale: f64::INFINITY,
     settle_rel: 0.0,
     h_free: f64::INFINITY,
+    exact: false,
 };
 
 /// Simulate one compiled chain with `solver`, reporting states to `obs`.

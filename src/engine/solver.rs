@@ -277,6 +277,7 @@ impl Solver {
                 StepRule::Dt(_) => 0.0,
             },
             h_free: self.free_step(chain, h),
+            exact: matches!(self.step, StepRule::Tolerance(_)) && !chain.needs_terms(),
         })
     }
 
