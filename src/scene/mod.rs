@@ -246,7 +246,11 @@ impl Check<'_> {
                 ))
             }
         };
+        // The key is only spelt out for an error (this runs for every scene).
         for (i, &x) in values.iter().enumerate() {
+            if x.is_finite() && ok(x) {
+                continue;
+            }
             let k = if matches!(v, Some(PerBall::List(_))) {
                 format!("{key}[{i}]")
             } else {
