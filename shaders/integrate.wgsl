@@ -439,7 +439,15 @@ fn integrate(i: u32) {
             }
             if (tau > real(0.0)) {
                 for (var c = 0u; c < nc; c++) {
-                    d[c] = d[c] + (v[c] - v[c + 1u]) * tau;
+                    let r = v[c] - v[c + 1u];
+                    let dn = d[c] + r * tau;
+                    // A closing speed at or below the floor: no onset, but no
+                    // passing through either — the pair stops touching.
+                    if (r > real(0.0) && r <= v_floor) {
+                        d[c] = min(dn, real(0.0));
+                    } else {
+                        d[c] = dn;
+                    }
                 }
                 tt[0] = tt[0] + tau;
             }

@@ -185,6 +185,18 @@ fn impacts_a_neighbour_can_reach_are_integrated() {
     }
 }
 
+#[test]
+fn pairs_closing_below_the_floor_never_pass_through_each_other() {
+    // Balls 0 and 1 touch and close at 5e-8 m/s, below the floor (1e-7·v_in at
+    // the default tolerance): no onset. Balls 2 and 3 meet only after a 200 s
+    // free flight. The slow pair must not overlap by 5e-8·200 = 1e-5 m in the
+    // meantime (that overlap would release 5% of the energy as a kick).
+    let o = run("balls = 4\ngap = [0, 0, 200]\nvelocity = [5e-8, 0, 1.0, 0]");
+    assert_eq!(o.status, Status::Ok, "{o:?}");
+    assert!(err(&o, &[5e-8, 0.0, 0.0, 1.0], 1.0) < 1e-6, "{:?}", o.v);
+    assert!(o.energy_error < 1e-7, "{}", o.energy_error);
+}
+
 const ONE_INTO_FOUR: [f64; 5] = [-0.07109, -0.03027, -0.01446, 0.12704, 0.98878];
 
 #[test]

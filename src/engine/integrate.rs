@@ -810,7 +810,17 @@ impl<R: Real, const L: usize> Lanes<R, L> {
             }
             if tau > zero {
                 for c in 0..nc {
-                    self.d[c][l] = self.d[c][l] + (self.v[c][l] - self.v[c + 1][l]) * tau;
+                    let r = self.v[c][l] - self.v[c + 1][l];
+                    let d = self.d[c][l] + r * tau;
+                    // A closing speed at or below the floor is no onset, but
+                    // while the rest of the chain goes on the pair must not
+                    // pass through each other: it stops touching (its collision
+                    // would change velocities by less than the floor).
+                    self.d[c][l] = if r > zero && r <= self.v_floor[l] {
+                        d.min(zero)
+                    } else {
+                        d
+                    };
                 }
                 if sh.track_x {
                     self.x0[l] = self.x0[l] + self.v[0][l] * tau;
