@@ -16,7 +16,9 @@
 //!
 //! Work a scene does not need is skipped: while every contact is open the chain
 //! is in free flight and is advanced analytically to the next contact onset
-//! (0 steps); the run ends as soon as no contact is closed and none is closing.
+//! (0 steps); an impact nothing else can join is taken in closed form
+//! (`Lanes::exact_impact`, 0 steps); the run ends as soon as no contact is
+//! closed and none is closing.
 //!
 //! Pendulum (`Chain::is_pendulum`): every body feels −g·sin(x_b/L), with x_b
 //! rebuilt from body 0's displacement and the overlaps. Free flight is then
