@@ -132,11 +132,16 @@ impl Chain {
         self.x0.iter().fold(v, |m, &x| m.max(self.swing_speed(x)))
     }
 
+    /// Reduced mass m_c·m_{c+1}/(m_c + m_{c+1}) of contact c (kg).
+    pub fn reduced_mass(&self, c: usize) -> f64 {
+        let (a, b) = (self.mass[c], self.mass[c + 1]);
+        a * b / (a + b)
+    }
+
     /// Closed-form impact coefficients of contact c
     /// ([`super::contact::impact_coefficients`]).
     pub fn impact_coefficients(&self, c: usize) -> (f64, f64) {
-        let (a, b) = (self.mass[c], self.mass[c + 1]);
-        impact_coefficients(a * b / (a + b), self.k[c])
+        impact_coefficients(self.reduced_mass(c), self.k[c])
     }
 
     /// Shortest time scale of the chain (s): the two-body Hertz contact time of
@@ -156,10 +161,7 @@ impl Chain {
             return None;
         }
         (0..self.k.len())
-            .map(|c| {
-                let (a, b) = (self.mass[c], self.mass[c + 1]);
-                contact_time(a * b / (a + b), self.k[c], v)
-            })
+            .map(|c| contact_time(self.reduced_mass(c), self.k[c], v))
             .reduce(f64::min)
     }
 

@@ -152,13 +152,11 @@ pub fn max_overlap(mu: f64, k: f64, v: f64) -> f64 {
 
 /// Coefficients (a, b) of an isolated two-body Hertz impact in closed form:
 /// at approach speed u it lasts t_c = a/u^{1/5} and reaches δ_max =
-/// b·u/u^{1/5} (s, m). The integrators take such an impact in one jump
-/// (`integrate`'s `exact_impact`), so both get these from the host.
+/// b·u/u^{1/5} (s, m) — the contact time and peak overlap at 1 m/s. The
+/// integrators take such an impact in one jump (`integrate`'s
+/// `exact_impact`), so both get these from the host.
 pub fn impact_coefficients(mu: f64, k: f64) -> (f64, f64) {
-    (
-        CONTACT_TIME_CONST * (mu * mu / (k * k)).powf(0.2),
-        (1.25 * mu / k).powf(0.4),
-    )
+    (contact_time(mu, k, 1.0), max_overlap(mu, k, 1.0))
 }
 
 /// x^{1/5} for x > 0, from +, −, ×, ÷ only, the same operations as
