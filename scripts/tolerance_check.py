@@ -10,14 +10,14 @@ the step (event timings shift), so the error models are checked densely.
   python3 scripts/tolerance_check.py --out results/tolerance_check.csv
 
 Verlet is checked down to 1e-7 and yoshida4 to 1e-9 (below that they take
-minutes per point); suzuki4 and yoshida6 to 1e-10. Exits 1 if any ratio > 1.
+minutes per point); suzuki4, yoshida6 and kahanli6 to 1e-10. Exits 1 if any ratio > 1.
 """
 import argparse, csv, os, subprocess, sys
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 CRADLE = os.path.join(ROOT, "target", "release", "cradle")
 GRID = os.path.join(ROOT, "examples", "grid100.toml")
-LOWEST = {"verlet": 1e-7, "yoshida4": 1e-9, "suzuki4": 1e-10, "yoshida6": 1e-10}
+LOWEST = {"verlet": 1e-7, "yoshida4": 1e-9, "suzuki4": 1e-10, "yoshida6": 1e-10, "kahanli6": 1e-10}
 
 
 def sweep(tmp, method, tol):
@@ -34,11 +34,14 @@ def main():
     p.add_argument("--out", required=True)
     p.add_argument("--tmp", default="/tmp/tolerance_check")
     p.add_argument("--per-decade", type=int, default=8)
+    p.add_argument("--methods", help="comma-separated subset (default: every method)")
     a = p.parse_args()
     os.makedirs(a.tmp, exist_ok=True)
     ref, _ = sweep(a.tmp, "suzuki4", 1e-11)
     rows, worst = [], 0.0
     for method, lowest in LOWEST.items():
+        if a.methods and method not in a.methods.split(","):
+            continue
         k = 0
         while (tol := 10 ** (-3 - k / a.per_decade)) >= lowest * 0.999:
             v, steps = sweep(a.tmp, method, tol)

@@ -39,8 +39,9 @@ struct Header {
     // number of bodies
     nb: u32,
     // offset of this scene's parameters in `params`: h, v_floor, max_time,
-    // one (= 1.0), h_min, t_scale, h_free, g, inv_l, drag, a_e,
-    // weights[n_weights], inv_m[nb], k[nc], inv_r[nc], gap[nc], imp_t[nc], imp_d[nc]
+    // one (= 1.0), h_min, t_scale, h_free, g, inv_l, drag, a_e, h_stiff,
+    // weights[n_weights], kicks[n_weights + 1], inv_m[nb], k[nc], inv_r[nc],
+    // gap[nc], imp_t[nc], imp_d[nc], stiff_l[nc], stiff_r[nc]
     input: u32,
     // offset of its state (the results once it ends) in `out_real`: v[nb], d[nc],
     // cv[nb], cd[nc], chi[nc], f[nc], t, t_first (−1: none), t_release (−1: none),
@@ -85,6 +86,9 @@ var<private> gap: array<real, MAX_BALLS>;
 // closed-form impact coefficients of each contact (engine::contact::impact_coefficients)
 var<private> imp_t: array<real, MAX_BALLS>;
 var<private> imp_d: array<real, MAX_BALLS>;
+// stiffness-cap coefficients of each contact (engine::Chain::stiffness_coefficients)
+var<private> stiff_l: array<real, MAX_BALLS>;
+var<private> stiff_r: array<real, MAX_BALLS>;
 // body 0's displacement and its compensation, simulated time and its compensation
 var<private> x0: array<real, 1>;
 var<private> cx0: array<real, 1>;
@@ -225,41 +229,70 @@ fn forces() -> bool {
     return closed;
 }
 
-// engine::integrate::graded_step — at most s0; small steps near contact kinks:
-// h·(T/tc)^(q/4) at time distance T < tc from a kink, at most T/2 before it and
-// 2T after it at any distance, never below h_min, landing on a kink ahead.
+// engine::integrate::graded_steps — at most s0; small steps near contact
+// kinks: h·(T/tc)^(q/4) at time distance T < tc from the nearest kink, at
+// most T/2 before a kink and 2T after it, never below h_min; kinks at
+// T ≥ 2·s0 restrict nothing.
 fn graded_step(s0: real, h: real, h_min: real, tc: real, quarters: u32) -> real {
-    var s = s0;
+    var any = false;
+    var cap = real(0.0);
+    var near = real(0.0);
     for (var c = 0u; c < nc; c++) {
         let r = v[c] - v[c + 1u];
         let dc = d[c];
-        let ar = abs(r);
-        if (ar <= real(0.0)) {
-            continue;
-        }
-        let tk = abs(dc) / ar;
-        if (tk >= s + s) {
+        let tk = abs(dc) / abs(r);
+        if (abs(r) <= real(0.0) || tk >= s0 + s0) {
             continue; // no restriction from this contact
         }
         let ahead = (dc < real(0.0) && r > real(0.0)) || (dc > real(0.0) && r < real(0.0));
         // Halve the distance to a kink ahead, at most double the distance from
         // one behind: no substep reaches across a kink until the step is h_min.
-        var cap = tk + tk;
+        var cc = tk + tk;
         if (ahead) {
-            cap = tk * real(0.5);
+            cc = tk * real(0.5);
         }
-        var sc = cap;
-        if (tk < tc) {
-            let q = sqrt(sqrt(tk / tc));
-            var gr = real(1.0);
-            for (var j = 0u; j < quarters; j++) {
-                gr = gr * q;
-            }
-            sc = min(sc, h * gr);
+        if (any) {
+            cap = min(cap, cc);
+            near = min(near, tk);
+        } else {
+            cap = cc;
+            near = tk;
+            any = true;
         }
-        s = min(s, max(sc, h_min));
     }
-    return s;
+    if (!any) {
+        return s0;
+    }
+    var graded = cap;
+    if (near < tc) {
+        let q = sqrt(sqrt(near / tc));
+        var gr = real(1.0);
+        for (var j = 0u; j < quarters; j++) {
+            gr = gr * q;
+        }
+        graded = min(cap, h * gr);
+    }
+    return min(s0, max(graded, h_min));
+}
+
+// engine::integrate::stiffness_cap — s0, at most h_stiff/Λ^{1/4} (not below
+// h_min) while a contact is closed; Λ bounds (ω/ω_ref)⁴.
+fn stiffness_cap(s0: real, h_stiff: real, h_min: real) -> real {
+    var lam = real(0.0);
+    var right = real(0.0);
+    for (var c = 0u; c < nc; c++) {
+        let dp = max(d[c], real(0.0));
+        lam = max(lam, right + stiff_l[c] * dp);
+        right = stiff_r[c] * dp;
+    }
+    let lm = max(lam, right);
+    if (lm > real(0.0) && h_stiff > real(0.0)) {
+        let cap = max(h_stiff / sqrt(sqrt(lm)), h_min);
+        if (cap < s0) {
+            return cap;
+        }
+    }
+    return s0;
 }
 
 // engine::contact::fifth_root — scale by powers of 32 into [1, 32), quadratic
@@ -368,12 +401,14 @@ fn integrate(i: u32) {
     inv_l = params[p0 + 8u];
     drag = params[p0 + 9u];
     let a_e = params[p0 + 10u];
+    let h_stiff = params[p0 + 11u];
     let exact = (hd.flags & FLAG_EXACT) != 0u;
     pend = TERMS && (hd.flags & FLAG_PENDULUM) != 0u;
     damped = TERMS && (hd.flags & FLAG_DAMPED) != 0u;
     dragged = TERMS && (hd.flags & FLAG_DRAG) != 0u;
-    let w0 = p0 + 11u; // substep weights
-    let m0 = w0 + hd.n_weights; // inv_m
+    let w0 = p0 + 12u; // substep weights
+    let k0 = w0 + hd.n_weights; // kick weights (engine::integrate::kick_weights)
+    let m0 = k0 + hd.n_weights + 1u; // inv_m
     let q = m0 + nb;
     let o = hd.output;
     let s = o + 2u * nb + 4u * nc;
@@ -389,6 +424,8 @@ fn integrate(i: u32) {
         gap[c] = params[q + 2u * nc + c];
         imp_t[c] = params[q + 3u * nc + c];
         imp_d[c] = params[q + 4u * nc + c];
+        stiff_l[c] = params[q + 5u * nc + c];
+        stiff_r[c] = params[q + 6u * nc + c];
         d[c] = out_real[o + nb + c];
         cd[c] = out_real[o + 2u * nb + nc + c];
         chi[c] = out_real[o + 2u * nb + 2u * nc + c];
@@ -488,14 +525,13 @@ fn integrate(i: u32) {
         // The step: graded near kinks; on a pendulum long in free flight and
         // landing exactly on the duration.
         var step = h;
-        if (pend) {
-            var s0 = h_free;
-            if (closed) {
-                s0 = h;
+        if (pend || hd.quarters > 0u) {
+            var s0 = h;
+            if (pend && !closed) {
+                s0 = h_free;
             }
+            s0 = stiffness_cap(s0, h_stiff, h_min);
             step = graded_step(s0, h, h_min, t_scale, hd.quarters);
-        } else if (hd.quarters > 0u) {
-            step = graded_step(h, h, h_min, t_scale, hd.quarters);
         }
         var last = false;
         if (pend) {
@@ -517,11 +553,11 @@ fn integrate(i: u32) {
                 }
             }
         }
-        // One step: velocity-Verlet substeps (kick, drift, forces, kick).
+        // One step: velocity-Verlet substeps (kick, drift, forces, kick), the
+        // closing half kick of each joined with the opening one of the next.
+        kick(params[k0] * step);
         for (var wi = 0u; wi < hd.n_weights; wi++) {
             let ws = params[w0 + wi] * step;
-            let hh = ws * real(0.5);
-            kick(hh);
             for (var c = 0u; c < nc; c++) {
                 add(&d, &cd, c, ws * (v[c] - v[c + 1u]));
             }
@@ -529,7 +565,7 @@ fn integrate(i: u32) {
                 add1(&x0, &cx0, ws * v[0]);
             }
             closed = forces();
-            kick(hh);
+            kick(params[k0 + wi + 1u] * step);
         }
         let t_start = tt[0];
         if (last) {

@@ -433,6 +433,7 @@ fn high_order_methods_converge_fast_across_contact_kinks() {
         (Method::Suzuki4, 3.7),
         (Method::Yoshida4, 3.5),
         (Method::Yoshida6, 5.0),
+        (Method::KahanLi6, 5.0),
     ] {
         let reference = reference(s, 1e-12);
         let divs = [25.0, 35.0, 50.0, 71.0, 100.0];
@@ -462,6 +463,99 @@ fn high_order_methods_converge_fast_across_contact_kinks() {
             m.name()
         );
     }
+}
+
+/// A light ball squeezed between two heavy ones rings faster than any
+/// two-body impact of its chain (t_c, and with it h, comes from those): the
+/// stiffness cap keeps every graded method well inside its tolerance. Without
+/// it yoshida6 errs 0.58·tol and kahanli6 1.9·tol here.
+#[test]
+fn a_light_ball_squeezed_between_heavy_ones_meets_the_tolerance() {
+    let m = steel_mass();
+    let s = scene(&format!(
+        "balls = 3\nmass = [{}, {m}, {}]\nvelocity = [1.0, 0, -0.5]",
+        100.0 * m,
+        50.0 * m
+    ));
+    let reference = reference(&s, 1e-11);
+    for m in [Method::Suzuki4, Method::Yoshida6, Method::KahanLi6] {
+        for tol in [1e-5, 1e-6, 1e-7] {
+            let o = solve_with(&s, Some(StepRule::Tolerance(tol)), Precision::F64, Some(m));
+            let e = max_diff(&o.v, &reference) / s.v_in();
+            assert!(e <= 0.2 * tol, "{} at {tol:e}: error {e:e}", m.name());
+        }
+    }
+}
+
+/// The bound behind the stiffness cap: (Λ)^{1/4}·ω_ref is at least the
+/// fastest frequency of the chain linearised at its overlaps (largest
+/// eigenvalue of M^{−1/2}·K'·M^{−1/2}, by power iteration), exactly 2^{1/4}
+/// times it for one contact between equal balls, and within 1% of it for a
+/// light ball squeezed equally from both sides.
+#[test]
+fn stiffness_bound_holds_and_is_tight_where_it_matters() {
+    let m = steel_mass();
+    let chain = |masses: &[f64]| {
+        let list: Vec<String> = masses.iter().map(|x| format!("{}", x * m)).collect();
+        let text = format!(
+            "balls = {}\nmass = [{}]\nvelocity = [1.0{}]",
+            masses.len(),
+            list.join(", "),
+            ", 0".repeat(masses.len() - 1)
+        );
+        Chain::from_scene(&scene(&text)).unwrap()
+    };
+    // (ω_bound, ω_true) at overlaps `d`, ω_ref = 1 rad/s.
+    let omegas = |ch: &Chain, d: &[f64]| {
+        let nb = ch.n_bodies();
+        let coef: Vec<(f64, f64)> = (0..nb - 1)
+            .map(|c| ch.stiffness_coefficients(c, 1.0))
+            .collect();
+        let lam = (0..nb)
+            .map(|b| {
+                let left = if b > 0 { coef[b - 1].1 * d[b - 1] } else { 0.0 };
+                let right = if b + 1 < nb { coef[b].0 * d[b] } else { 0.0 };
+                left + right
+            })
+            .fold(0.0, f64::max);
+        let kp: Vec<f64> = (0..nb - 1).map(|c| 1.5 * ch.k[c] * d[c].sqrt()).collect();
+        let mut x: Vec<f64> = (0..nb).map(|b| 1.0 + 0.1 * b as f64).collect();
+        let mut eig = 0.0;
+        for _ in 0..5000 {
+            // y = M^{-1/2} K' M^{-1/2} x
+            let u: Vec<f64> = (0..nb).map(|b| x[b] / ch.mass[b].sqrt()).collect();
+            let mut y = vec![0.0; nb];
+            for c in 0..nb - 1 {
+                let f = kp[c] * (u[c] - u[c + 1]);
+                y[c] += f;
+                y[c + 1] -= f;
+            }
+            let y: Vec<f64> = (0..nb).map(|b| y[b] / ch.mass[b].sqrt()).collect();
+            let norm = y.iter().map(|v| v * v).sum::<f64>().sqrt();
+            eig = norm / x.iter().map(|v| v * v).sum::<f64>().sqrt();
+            x = y.iter().map(|v| v / norm).collect();
+        }
+        (lam.powf(0.25), eig.sqrt())
+    };
+    let mut rnd = common::uniform(7);
+    for _ in 0..200 {
+        let masses: Vec<f64> = (0..5).map(|_| 10f64.powf(2.0 * rnd() - 1.0)).collect();
+        let d: Vec<f64> = (0..4)
+            .map(|_| if rnd() < 0.3 { 0.0 } else { 1e-5 * rnd() })
+            .collect();
+        if d.iter().all(|&x| x == 0.0) {
+            continue;
+        }
+        let (bound, exact) = omegas(&chain(&masses), &d);
+        assert!(
+            bound >= exact * (1.0 - 1e-9),
+            "{masses:?} {d:?}: {bound} < {exact}"
+        );
+    }
+    let (bound, exact) = omegas(&chain(&[1.0, 1.0]), &[1e-5]);
+    assert!((bound / exact - 2f64.powf(0.25)).abs() < 1e-9);
+    let (bound, exact) = omegas(&chain(&[1e6, 1.0, 1e6]), &[1e-5, 1e-5]);
+    assert!(bound / exact < 1.01, "squeezed: {}", bound / exact);
 }
 
 #[test]

@@ -10,7 +10,7 @@ use bytemuck::{Pod, Zeroable};
 use wgpu::util::DeviceExt;
 
 use super::{Backend, Job};
-use crate::engine::integrate::{closing_speed_floor, Run};
+use crate::engine::integrate::{closing_speed_floor, kick_weights, Run};
 use crate::engine::real::Real;
 use crate::engine::{plan, simulate_chain, Chain, End, Model, Outcome, Silent, Solver, UNSTEPPED};
 use crate::scene::Precision;
@@ -76,7 +76,7 @@ fn loops_per_step(ch: &Chain, n_weights: usize) -> usize {
     let nc = nb - 1;
     let pend = if ch.is_pendulum() { 11 * nb } else { 0 };
     let drag = if ch.air_drag > 0.0 { 2 * (nb + 25) } else { 0 };
-    let step = n_weights * (2 * nb + 2 * nc + pend + drag) + 8 * nc + nb + 8;
+    let step = n_weights * (2 * nb + 2 * nc + pend + drag) + 9 * nc + nb + 8;
     step.max(3 * nc + 32)
 }
 
@@ -331,7 +331,9 @@ impl Gpu {
             }));
             params.push(R::of(ch.air_drag));
             params.push(R::of(ch.damping_a));
+            params.push(R::of(sp.h_stiff));
             params.extend(sp.weights.iter().map(|&w| R::of(w)));
+            params.extend(kick_weights(sp.weights).iter().map(|&w| R::of(w)));
             params.extend(ch.mass.iter().map(|m| R::of(1.0 / m)));
             params.extend(ch.k.iter().map(|&k| R::of(k)));
             params.extend(ch.r_min.iter().map(|r| R::of(1.0 / r)));
@@ -339,6 +341,11 @@ impl Gpu {
             let imp: Vec<(f64, f64)> = (0..nb - 1).map(|c| ch.impact_coefficients(c)).collect();
             params.extend(imp.iter().map(|&(t, _)| R::of(t)));
             params.extend(imp.iter().map(|&(_, d)| R::of(d)));
+            let stiff: Vec<(f64, f64)> = (0..nb - 1)
+                .map(|c| ch.stiffness_coefficients(c, sp.omega_ref))
+                .collect();
+            params.extend(stiff.iter().map(|&(l, _)| R::of(l)));
+            params.extend(stiff.iter().map(|&(_, r)| R::of(r)));
             state.extend(ch.v0.iter().map(|&v| R::of(v)));
             state.extend(ch.initial_overlap().iter().map(|&d| R::of(d)));
             // compensations cv, cd; χ and forces (every contact starts open)

@@ -144,6 +144,21 @@ impl Chain {
         impact_coefficients(self.reduced_mass(c), self.k[c])
     }
 
+    /// Coefficients (left, right) of contact c for a bound on the chain's
+    /// fastest local frequency ω, relative to `omega_ref` (rad/s):
+    /// (ω/ω_ref)⁴ ≤ max_b (right_{b−1}·δ⁺_{b−1} + left_b·δ⁺_b). The local
+    /// stiffness of contact c is k'_c = (3/2)·k_c·√δ_c; by Gershgorin, ω² is
+    /// at most the largest row sum of M^{−1/2}·K'·M^{−1/2}, k'_{b−1}·(1/m_b +
+    /// 1/√(m_{b−1}m_b)) + k'_b·(1/m_b + 1/√(m_b m_{b+1})), and (x + y)² ≤
+    /// 2(x² + y²) squares it without a square root per contact. Exact for a
+    /// light ball squeezed equally from both sides; 2^{1/4} high for one contact.
+    pub fn stiffness_coefficients(&self, c: usize, omega_ref: f64) -> (f64, f64) {
+        let (ia, ib) = (1.0 / self.mass[c], 1.0 / self.mass[c + 1]);
+        let cross = (ia * ib).sqrt();
+        let scale = 2.0 * (1.5 * self.k[c]).powi(2) / omega_ref.powi(4);
+        (scale * (ia + cross).powi(2), scale * (ib + cross).powi(2))
+    }
+
     /// Shortest time scale of the chain (s): the two-body Hertz contact time of
     /// the stiffest, lightest contact at the largest initial relative speed.
     /// Outcomes of a touching chain scale exactly when steps are a fixed

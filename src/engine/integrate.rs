@@ -186,6 +186,11 @@ pub struct StepPlan {
     /// Take isolated two-body impacts in closed form (elastic free lines
     /// under a tolerance; a fixed `dt` integrates every impact).
     pub exact: bool,
+    /// Stiffness cap: while the chain's fastest local frequency ω exceeds
+    /// `omega_ref` (rad/s), the step is at most `h_stiff`·ω_ref/ω
+    /// ([`super::Chain::stiffness_coefficients`]); `h_stiff` 0: no cap.
+    pub h_stiff: f64,
+    pub omega_ref: f64,
 }
 
 /// The step each lane takes now, at most `s0`. The Hertz force has a δ^{3/2} kink
@@ -194,8 +199,13 @@ pub struct StepPlan {
 /// T = |δ|/|r| < t_c from a kink the step is h·(T/t_c)^(q/4) (the p-th
 /// derivative of the force grows as T^{3/2−p}); at any distance it is at most
 /// T/2 before the kink and 2T after it, never less than `h_min`, where a step
-/// crosses the kink. On a free line `s0 = h`; on a pendulum in free flight
-/// `s0` is the long free-flight step, halved towards each onset.
+/// crosses the kink. Kinks at T ≥ 2·s0 restrict nothing. On a free line
+/// `s0` is h or the stiffness cap; on a pendulum in free flight it is the
+/// long free-flight step, halved towards each onset.
+///
+/// (T/t_c)^(q/4) grows with T, so the grading is evaluated once, at the
+/// nearest kink: min over contacts of max(min(cap, h·g(T)), h_min) is
+/// max(min(min cap, h·g(min T)), h_min), to the last bit.
 ///
 /// Without branches (every lane at once); the same operations as
 /// `graded_step` in the shader.
@@ -213,36 +223,105 @@ fn graded_steps<R: Real, const L: usize>(
 ) -> [R; L] {
     let zero = R::zero();
     let half = R::of(0.5);
-    let mut s = *s0;
+    let mut cap = [R::infinity(); L];
+    let mut near = [R::infinity(); L];
     for c in 0..nc {
-        // In three lane loops: a loop inside one keeps it from vectorising.
-        let (mut tk, mut q, mut g) = ([zero; L], [zero; L], [R::one(); L]);
-        for l in 0..L {
-            let ar = (v[c][l] - v[c + 1][l]).abs();
-            tk[l] = d[c][l].abs() / ar;
-            q[l] = (tk[l] / tc[l]).sqrt().sqrt();
-        }
-        for _ in 0..quarters {
-            for l in 0..L {
-                g[l] = g[l] * q[l];
-            }
-        }
         for l in 0..L {
             let r = v[c][l] - v[c + 1][l];
             let dc = d[c][l];
-            let skip = r.abs() <= zero || tk[l] >= s[l] + s[l];
+            let tk = dc.abs() / r.abs();
+            let skip = r.abs() <= zero || tk >= s0[l] + s0[l];
             let ahead = (dc < zero && r > zero) || (dc > zero && r < zero);
-            let cap = if ahead { tk[l] * half } else { tk[l] + tk[l] };
-            let sc = if tk[l] < tc[l] {
-                cap.min(h[l] * g[l])
-            } else {
-                cap
-            };
-            let cand = s[l].min(sc.max(h_min[l]));
-            s[l] = if skip { s[l] } else { cand };
+            let cc = if ahead { tk * half } else { tk + tk };
+            cap[l] = if skip { cap[l] } else { lo(cap[l], cc) };
+            near[l] = if skip { near[l] } else { lo(near[l], tk) };
         }
     }
+    let mut s = *s0;
+    for l in 0..L {
+        let q = (near[l] / tc[l]).sqrt().sqrt();
+        let mut g = R::one();
+        for _ in 0..quarters {
+            g = g * q;
+        }
+        let graded = if near[l] < tc[l] {
+            lo(cap[l], h[l] * g)
+        } else {
+            cap[l]
+        };
+        s[l] = lo(s[l], hi(graded, h_min[l]));
+    }
     s
+}
+
+/// min and max without the NaN care of `f64::min`: one instruction each.
+/// A NaN anywhere ends the run as non-finite before it matters.
+#[inline(always)]
+fn lo<R: Real>(a: R, b: R) -> R {
+    if b < a {
+        b
+    } else {
+        a
+    }
+}
+#[inline(always)]
+fn hi<R: Real>(a: R, b: R) -> R {
+    if b > a {
+        b
+    } else {
+        a
+    }
+}
+
+/// The stiffness cap of every lane: `s0` at most h_stiff/Λ^{1/4} (not below
+/// h_min), Λ = max_b (stiff_r_{b−1}·δ⁺_{b−1} + stiff_l_b·δ⁺_b) bounding
+/// (ω/ω_ref)⁴, ω the chain's fastest local frequency
+/// ([`super::Chain::stiffness_coefficients`]). No cap while every contact is
+/// open or where h_stiff is 0. The same operations as `stiffness_cap` in the
+/// shader.
+#[inline(always)]
+fn stiffness_cap<R: Real, const L: usize>(
+    nc: usize,
+    d: &[[R; L]; MAX_BALLS],
+    sl: &[[R; L]; MAX_BALLS],
+    sr: &[[R; L]; MAX_BALLS],
+    h_stiff: &[R; L],
+    h_min: &[R; L],
+    s0: &mut [R; L],
+) {
+    let zero = R::zero();
+    let mut lam = [zero; L];
+    let mut right = [zero; L]; // the row's part from the contact on the left
+    for c in 0..nc {
+        for l in 0..L {
+            let dp = hi(d[c][l], zero);
+            lam[l] = hi(lam[l], right[l] + sl[c][l] * dp);
+            right[l] = sr[c][l] * dp;
+        }
+    }
+    for l in 0..L {
+        let lm = hi(lam[l], right[l]);
+        let cap = hi(h_stiff[l] / lm.sqrt().sqrt(), h_min[l]);
+        if lm > zero && h_stiff[l] > zero && cap < s0[l] {
+            s0[l] = cap;
+        }
+    }
+}
+
+/// Kick sizes of a step, in units of the step, for substep weights w_0..w_{n−1}:
+/// w_0/2, (w_0 + w_1)/2, …, (w_{n−2} + w_{n−1})/2, w_{n−1}/2. Substep i's
+/// closing half kick and substep i+1's opening one use the same forces, so
+/// they are one kick: n + 1 kicks a step instead of 2n. The shader gets the
+/// same numbers from the host.
+pub fn kick_weights(weights: &[f64]) -> Vec<f64> {
+    let n = weights.len();
+    (0..=n)
+        .map(|i| {
+            let before = if i > 0 { weights[i - 1] } else { 0.0 };
+            let after = if i < n { weights[i] } else { 0.0 };
+            0.5 * (before + after)
+        })
+        .collect()
 }
 
 /// One run of a batch: a chain, its steps and its caps.
@@ -392,12 +471,20 @@ struct Lanes<R, const L: usize> {
     /// 1/radius of each contact.
     max_ov: [f64; L],
     max_ratio: [f64; L],
+    /// Largest overlap of each contact after a step (m); folded into
+    /// `max_ov` and `max_ratio` when the run ends.
+    dmax: [[R; L]; MAX_BALLS],
     inv_r: [[f64; L]; MAX_BALLS],
     /// Closed-form impact coefficients of each contact
     /// ([`super::contact::impact_coefficients`]).
     imp_t: [[R; L]; MAX_BALLS],
     imp_d: [[R; L]; MAX_BALLS],
     exact: [bool; L],
+    /// Stiffness-cap coefficients of each contact
+    /// ([`super::Chain::stiffness_coefficients`]) and the cap's step.
+    stiff_l: [[R; L]; MAX_BALLS],
+    stiff_r: [[R; L]; MAX_BALLS],
+    h_stiff: [R; L],
     run: [Book; L],
 }
 
@@ -471,10 +558,14 @@ impl<R: Real, const L: usize> Lanes<R, L> {
             closed: [false; L],
             max_ov: [0.0; L],
             max_ratio: [0.0; L],
+            dmax: z,
             inv_r: [[0.0; L]; MAX_BALLS],
             imp_t: z,
             imp_d: z,
             exact: [false; L],
+            stiff_l: z,
+            stiff_r: z,
+            h_stiff: zl,
             run: [IDLE; L],
         })
     }
@@ -502,7 +593,11 @@ impl<R: Real, const L: usize> Lanes<R, L> {
             let (a, b) = ch.impact_coefficients(c);
             self.imp_t[c][l] = R::of(a);
             self.imp_d[c][l] = R::of(b);
+            let (sl, sr) = ch.stiffness_coefficients(c, plan.omega_ref);
+            self.stiff_l[c][l] = R::of(sl);
+            self.stiff_r[c][l] = R::of(sr);
         }
+        self.h_stiff[l] = R::of(plan.h_stiff);
         self.exact[l] = plan.exact;
         self.x0[l] = R::of(ch.x0[0]);
         self.cx0[l] = zero;
@@ -525,6 +620,9 @@ impl<R: Real, const L: usize> Lanes<R, L> {
         self.step[l] = zero;
         self.max_ov[l] = 0.0;
         self.max_ratio[l] = 0.0;
+        for c in 0..sh.nc {
+            self.dmax[c][l] = R::zero();
+        }
         book.task = Some(i);
         book.lim = task.lim;
         self.run[l] = book;
@@ -563,7 +661,10 @@ impl<R: Real, const L: usize> Lanes<R, L> {
             to.inv_r[c][m] = self.inv_r[c][l];
             to.imp_t[c][m] = self.imp_t[c][l];
             to.imp_d[c][m] = self.imp_d[c][l];
+            to.stiff_l[c][m] = self.stiff_l[c][l];
+            to.stiff_r[c][m] = self.stiff_r[c][l];
         }
+        to.h_stiff[m] = self.h_stiff[l];
         to.x0[m] = self.x0[l];
         to.cx0[m] = self.cx0[l];
         to.g[m] = self.g[l];
@@ -580,6 +681,9 @@ impl<R: Real, const L: usize> Lanes<R, L> {
         to.exact[m] = self.exact[l];
         to.max_ov[m] = self.max_ov[l];
         to.max_ratio[m] = self.max_ratio[l];
+        for c in 0..sh.nc {
+            to.dmax[c][m] = self.dmax[c][l];
+        }
         to.run[m] = self.run[l];
     }
 
@@ -639,9 +743,24 @@ impl<R: Real, const L: usize> Lanes<R, L> {
         for c in 0..sh.nc {
             let (k, d, chi, f) = (&self.kc[c], &self.d[c], &self.chi[c], &mut self.f[c]);
             let (va, vb) = (&self.v[c], &self.v[c + 1]);
-            for l in 0..L {
-                f[l] = contact(sh.damped, k[l], d[l], chi[l], va[l] - vb[l]);
-                closed[l] |= d[l] > zero;
+            // Lanes four at a time (one AVX vector of f64): where the contact
+            // is open in all four, the force is 0 without a square root.
+            let w = if L % 4 == 0 { 4 } else { L };
+            for j in (0..L).step_by(w) {
+                let mut any = false;
+                for l in j..j + w {
+                    any |= d[l] > zero;
+                }
+                if any {
+                    for l in j..j + w {
+                        f[l] = contact(sh.damped, k[l], d[l], chi[l], va[l] - vb[l]);
+                    }
+                } else {
+                    f[j..j + w].fill(zero);
+                }
+                for l in j..j + w {
+                    closed[l] |= d[l] > zero;
+                }
             }
         }
         self.closed = closed;
@@ -694,19 +813,21 @@ impl<R: Real, const L: usize> Lanes<R, L> {
     }
 
     /// One step of every lane: velocity-Verlet substeps (kick, drift, forces,
-    /// kick) of sizes `w·step`.
+    /// kick) of sizes `w·step`, the closing half kick of each substep joined
+    /// with the opening one of the next ([`kick_weights`]).
     #[inline(always)]
-    fn substeps(&mut self, sh: &Shape, weights: &[f64]) {
-        let half = R::of(0.5);
-        for &w in weights {
-            let w = R::of(w);
-            let mut ws = [R::zero(); L];
-            let mut hh = [R::zero(); L];
+    fn substeps(&mut self, sh: &Shape, weights: &[f64], kicks: &[f64]) {
+        let times = |c: f64, step: &[R; L]| {
+            let c = R::of(c);
+            let mut hk = [R::zero(); L];
             for l in 0..L {
-                ws[l] = w * self.step[l];
-                hh[l] = ws[l] * half;
+                hk[l] = c * step[l];
             }
-            self.kick(sh, &hh);
+            hk
+        };
+        self.kick(sh, &times(kicks[0], &self.step));
+        for (&w, &k) in weights.iter().zip(&kicks[1..]) {
+            let ws = times(w, &self.step);
             for c in 0..sh.nc {
                 for l in 0..L {
                     let inc = ws[l] * (self.v[c][l] - self.v[c + 1][l]);
@@ -720,7 +841,7 @@ impl<R: Real, const L: usize> Lanes<R, L> {
                 }
             }
             self.forces(sh);
-            self.kick(sh, &hh);
+            self.kick(sh, &times(k, &self.step));
         }
     }
 
@@ -781,12 +902,14 @@ impl<R: Real, const L: usize> Lanes<R, L> {
         true
     }
 
-    /// Lane l before its next step: free flight to the next onset (free line),
-    /// then the end checks. `Some(end)` when the run is over.
-    fn ready<O: Observer>(&mut self, sh: &Shape, l: usize, ch: &Chain, obs: &mut O) -> Option<End> {
+    /// Free flight of lane l (every contact open): jump to the next onset,
+    /// taking isolated impacts in closed form on the way. `Some(end)` when
+    /// the run is over.
+    #[inline(never)]
+    fn fly<O: Observer>(&mut self, sh: &Shape, l: usize, ch: &Chain, obs: &mut O) -> Option<End> {
         let zero = R::zero();
         let nc = sh.nc;
-        while !self.closed[l] && !sh.pend {
+        loop {
             // Free flight: every contact open. Jump to the next onset, if any.
             let book = &mut self.run[l];
             let mut tau = R::infinity();
@@ -843,6 +966,18 @@ impl<R: Real, const L: usize> Lanes<R, L> {
             }
             observe(sh, self, l, ch, obs);
         }
+        None
+    }
+
+    /// Lane l before its next step: free flight to the next onset (free line),
+    /// then the end checks. `Some(end)` when the run is over.
+    #[inline(always)]
+    fn ready<O: Observer>(&mut self, sh: &Shape, l: usize, ch: &Chain, obs: &mut O) -> Option<End> {
+        if !self.closed[l] && !sh.pend {
+            if let Some(end) = self.fly(sh, l, ch, obs) {
+                return Some(end);
+            }
+        }
         let book = &mut self.run[l];
         if sh.pend && book.t >= book.lim.max_time {
             return Some(End::Duration);
@@ -872,6 +1007,15 @@ impl<R: Real, const L: usize> Lanes<R, L> {
                     }
                 }
             }
+            stiffness_cap(
+                sh.nc,
+                &self.d,
+                &self.stiff_l,
+                &self.stiff_r,
+                &self.h_stiff,
+                &self.h_min,
+                &mut s0,
+            );
             step = graded_steps(
                 sh.nc,
                 &self.d,
@@ -927,13 +1071,8 @@ impl<R: Real, const L: usize> Lanes<R, L> {
         for c in 0..sh.nc {
             for l in 0..L {
                 let (d0, d1) = (self.d0[c][l], self.d[c][l]);
-                let on = d1 > zero;
-                event[l] |= on != (d0 > zero);
-                if on {
-                    let d = d1.to64();
-                    self.max_ov[l] = self.max_ov[l].max(d);
-                    self.max_ratio[l] = self.max_ratio[l].max(d * self.inv_r[c][l]);
-                }
+                event[l] |= (d1 > zero) != (d0 > zero);
+                self.dmax[c][l] = hi(self.dmax[c][l], d1);
             }
         }
         let lim = R::of(FINITE_LIMIT);
@@ -984,6 +1123,12 @@ impl<R: Real, const L: usize> Lanes<R, L> {
         } else {
             vec![f64::NAN; sh.nb]
         };
+        let (mut max_ov, mut max_ratio) = (self.max_ov[l], self.max_ratio[l]);
+        for c in 0..sh.nc {
+            let d = self.dmax[c][l].to64();
+            max_ov = max_ov.max(d);
+            max_ratio = max_ratio.max(d * self.inv_r[c][l]);
+        }
         let settled = matches!(end, End::Settled | End::Duration);
         let end = if settled
             && (v.iter().chain(&overlap).any(|x| !x.is_finite())
@@ -1001,8 +1146,8 @@ impl<R: Real, const L: usize> Lanes<R, L> {
             t: book.t,
             t_first_contact: book.t_first,
             t_last_release: book.t_release,
-            max_overlap: self.max_ov[l],
-            max_overlap_ratio: self.max_ratio[l],
+            max_overlap: max_ov,
+            max_overlap_ratio: max_ratio,
             x,
             contacts: book.contacts,
         }
@@ -1052,6 +1197,8 @@ fn run_lanes<R: Real, O: Observer, const TERMS: bool, const L: usize>(
         track_x: pend || O::ACTIVE,
     };
     let weights = first.plan.weights;
+    let kicks = kick_weights(weights);
+    let kicks = &kicks[..];
     let mut s = Lanes::<R, L>::new();
     let mut queue = group.iter().copied().peekable();
     for l in 0..L {
@@ -1063,17 +1210,17 @@ fn run_lanes<R: Real, O: Observer, const TERMS: bool, const L: usize>(
     // The last runs of a group go on in narrower kernels: a long run alone
     // in wide lanes would pay for all of them.
     if L > 8 {
-        drive(&mut s, &sh, weights, &mut queue, 8, tasks, out, obs);
+        drive(&mut s, &sh, weights, kicks, &mut queue, 8, tasks, out, obs);
         let mut t = s.narrow::<8>(&sh);
-        drive(&mut t, &sh, weights, &mut queue, 2, tasks, out, obs);
+        drive(&mut t, &sh, weights, kicks, &mut queue, 2, tasks, out, obs);
         let mut u = t.narrow::<2>(&sh);
-        drive(&mut u, &sh, weights, &mut queue, 0, tasks, out, obs);
+        drive(&mut u, &sh, weights, kicks, &mut queue, 0, tasks, out, obs);
     } else if L > 2 {
-        drive(&mut s, &sh, weights, &mut queue, 2, tasks, out, obs);
+        drive(&mut s, &sh, weights, kicks, &mut queue, 2, tasks, out, obs);
         let mut u = s.narrow::<2>(&sh);
-        drive(&mut u, &sh, weights, &mut queue, 0, tasks, out, obs);
+        drive(&mut u, &sh, weights, kicks, &mut queue, 0, tasks, out, obs);
     } else {
-        drive(&mut s, &sh, weights, &mut queue, 0, tasks, out, obs);
+        drive(&mut s, &sh, weights, kicks, &mut queue, 0, tasks, out, obs);
     }
 }
 
@@ -1086,6 +1233,7 @@ fn drive<R: Real, O: Observer, const L: usize>(
     s: &mut Lanes<R, L>,
     sh: &Shape,
     weights: &[f64],
+    kicks: &[f64],
     queue: &mut std::iter::Peekable<impl Iterator<Item = usize>>,
     tail: usize,
     tasks: &[Task],
@@ -1111,7 +1259,7 @@ fn drive<R: Real, O: Observer, const L: usize>(
             return;
         }
         s.plan_steps(sh);
-        s.substeps(sh, weights);
+        s.substeps(sh, weights, kicks);
         let bad = s.account(sh);
         for l in 0..L {
             let Some(i) = s.run[l].task else { continue };

@@ -40,6 +40,8 @@ pub const UNSTEPPED: StepPlan = StepPlan {
     settle_rel: 0.0,
     h_free: f64::INFINITY,
     exact: false,
+    h_stiff: 0.0,
+    omega_ref: 1.0,
 };
 
 /// Simulate one compiled chain with `solver`, reporting states to `obs`.
