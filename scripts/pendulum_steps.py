@@ -50,7 +50,7 @@ def main():
     ref, _ = run(a.cradle, paths["cradle"], "yoshida6", 1e-10)
     v_in = math.sqrt(2 * G * H)
     rows = []
-    for method in ["verlet", "suzuki4", "yoshida4", "yoshida6"]:
+    for method in ["verlet", "suzuki4", "yoshida4", "yoshida6", "kahanli6"]:
         for tol in [1e-4, 1e-6, 1e-8]:
             free, _ = run(a.cradle, paths["free"], method, tol)
             cr, wall = run(a.cradle, paths["cradle"], method, tol)

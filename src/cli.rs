@@ -231,7 +231,7 @@ pub struct SolverFlags {
     /// separation, touching chains) [default: hertz].
     #[arg(long)]
     pub model: Option<String>,
-    /// Integration method: verlet (order 2), suzuki4, yoshida4 (order 4), yoshida6 (order 6) [default: yoshida6].
+    /// Integration method: verlet (order 2), suzuki4, yoshida4 (order 4), yoshida6, kahanli6 (order 6) [default: kahanli6].
     #[arg(long)]
     pub method: Option<String>,
 }

@@ -9,7 +9,7 @@ use crate::error::InputError;
 use crate::scene::{Method, Precision, Scene};
 
 /// Default method: the fastest at every tolerance on grid100 (results/).
-pub const DEFAULT_METHOD: Method = Method::Yoshida6;
+pub const DEFAULT_METHOD: Method = Method::KahanLi6;
 /// Default target error of outcome velocities relative to v_in.
 pub const DEFAULT_TOLERANCE: f64 = 1e-6;
 /// Smallest tolerance f32 arithmetic can honour (round-off floor).
@@ -288,15 +288,18 @@ impl Solver {
         let p = self.method.order();
         // The p-th derivative of δ^{3/2} grows as T^{3/2−p} at time T from a
         // kink: steps h·(T/t_c)^{(p−3/2)/(p+1)} keep every local error below
-        // h^{p+1} (exponent rounded up to quarters: 4 → 1/2, 6 → 3/4). A step
-        // across a kink errs by ~s^{5/2}: the smallest step keeps that small too.
+        // h^{p+1} (0.5 for order 4, 0.64 for order 6). Measured on grid100,
+        // 1/2 takes 7% fewer steps than 3/4 at equal worst error for the
+        // order-6 methods too, so every graded method uses it. The step that
+        // crosses a kink errs by ~s^{5/2}; h_min = h·(h/t_c) took 13% fewer
+        // yoshida6 steps than h·(h/t_c)^{1.8} at the same worst error.
         let h_min = h * (h / tc).min(1.0);
         Some(StepPlan {
             h,
             weights: weights(self.method),
             graded: p > 2,
             h_min,
-            grade_quarters: if p <= 4 { 2 } else { 3 },
+            grade_quarters: 2,
             t_scale: GRADING_SCALE * tc,
             settle_rel: match self.step {
                 StepRule::Tolerance(tol) => SETTLE_FRACTION * tol,
