@@ -240,16 +240,58 @@ fn graded_step(s0: real, h: real, h_min: real, tc: real, quarters: u32) -> real 
     for (var c = 0u; c < nc; c++) {
         let r = v[c] - v[c + 1u];
         let dc = d[c];
-        let tk = abs(dc) / abs(r);
-        if (abs(r) <= real(0.0) || tk >= s0 + s0) {
-            continue; // no restriction from this contact
+        // δ̈ of the pair: its neighbours' contact pushes and gravity.
+        var left = real(0.0);
+        if (c > 0u) {
+            left = f[c - 1u];
         }
-        let ahead = (dc < real(0.0) && r > real(0.0)) || (dc > real(0.0) && r < real(0.0));
+        var right = real(0.0);
+        if (c + 1u < nc) {
+            right = f[c + 1u];
+        }
+        var a = (left - f[c]) * inv_m[c] - (f[c] - right) * inv_m[c + 1u];
+        if (pend) {
+            a = a + (acc[c] - acc[c + 1u]);
+        }
+        // Distance to the kink, and speed and acceleration towards it: the
+        // kink ahead at the first root of dd − rr·t − aa·t²/2, the one
+        // behind (moving away) dd/|rr| ago.
+        let dd = abs(dc);
+        var rr = r;
+        var aa = a;
+        if (dc > real(0.0)) {
+            rr = -r;
+            aa = -a;
+        }
+        let disc = rr * rr + (aa + aa) * dd;
+        let den = rr + sqrt(max(disc, real(0.0)));
+        var has_ahead = false;
+        var ahead = real(0.0);
+        if (disc >= real(0.0) && den > real(0.0)) {
+            has_ahead = true;
+            ahead = (dd + dd) / den;
+        }
+        let has_behind = rr < real(0.0);
+        var behind = real(0.0);
+        if (has_behind) {
+            behind = dd / -rr;
+        }
+        if (!has_ahead && !has_behind) {
+            continue; // no kink in reach
+        }
         // Halve the distance to a kink ahead, at most double the distance from
         // one behind: no substep reaches across a kink until the step is h_min.
-        var cc = tk + tk;
-        if (ahead) {
-            cc = tk * real(0.5);
+        var tk = ahead;
+        var cc = ahead * real(0.5);
+        if (!has_ahead) {
+            tk = behind;
+            cc = behind + behind;
+        } else if (has_behind) {
+            tk = min(ahead, behind);
+            cc = min(ahead * real(0.5), behind + behind);
+        }
+        if (tk >= s0 + s0) {
+            continue; // no restriction from this contact
         }
         if (any) {
             cap = min(cap, cc);
@@ -273,6 +315,24 @@ fn graded_step(s0: real, h: real, h_min: real, tc: real, quarters: u32) -> real 
         graded = min(cap, h * gr);
     }
     return min(s0, max(graded, h_min));
+}
+
+// engine::integrate::kink_impulse_error — the exact integral of k·δ⁺^{3/2}
+// along a straight line from d0 to d1 minus the composition's quadrature of
+// it (weights at params[w0..], kicks at params[k0..]).
+fn kink_impulse_error(kc: real, d0: real, d1: real, w0: u32, k0: u32, n: u32) -> real {
+    let dd = d1 - d0;
+    let p0 = max(d0, real(0.0));
+    let p1 = max(d1, real(0.0));
+    let exact = real(0.4) * (p1 * p1 * sqrt(p1) - p0 * p0 * sqrt(p0)) / dd;
+    var pos = real(0.0);
+    var quad = params[k0] * (p0 * sqrt(p0));
+    for (var i = 0u; i < n; i++) {
+        pos = pos + params[w0 + i];
+        let p = max(d0 + pos * dd, real(0.0));
+        quad = quad + params[k0 + i + 1u] * (p * sqrt(p));
+    }
+    return kc * (exact - quad);
 }
 
 // engine::integrate::stiffness_cap — s0, at most h_stiff/Λ^{1/4} (not below
@@ -575,10 +635,16 @@ fn integrate(i: u32) {
             add1(&tt, &ct, step);
         }
         steps += 1u;
-        // Onsets, overlaps, releases (located inside the step).
+        // Onsets, overlaps, releases (located inside the step); the kink
+        // impulse correction of a crossing step (graded, elastic).
         for (var c = 0u; c < nc; c++) {
             let dd = d0[c];
             let d1 = d[c];
+            if (hd.quarters > 0u && !damped && ((d1 > real(0.0)) != (dd > real(0.0)))) {
+                let dj = kink_impulse_error(k[c], dd, d1, w0, k0, hd.n_weights) * step;
+                add(&v, &cv, c, -(dj * inv_m[c]));
+                add(&v, &cv, c + 1u, dj * inv_m[c + 1u]);
+            }
             if (d1 > real(0.0)) {
                 if (dd <= real(0.0)) {
                     contacts += 1u;
