@@ -196,10 +196,13 @@ pub struct StepPlan {
 /// The step each lane takes now, at most `s0`. The Hertz force has a δ^{3/2} kink
 /// where a contact opens or closes, which costs a high-order method its order;
 /// steps are made small near every kink, on both sides: at time distance
-/// T = |δ|/|r| < t_c from a kink the step is h·(T/t_c)^(q/4) (the p-th
-/// derivative of the force grows as T^{3/2−p}); at any distance it is at most
-/// T/2 before the kink and 2T after it, never less than `h_min`, where a step
-/// crosses the kink. Kinks at T ≥ 2·s0 restrict nothing. On a free line
+/// T < t_c from a kink the step is h·(T/t_c)^(q/4) (the p-th derivative of
+/// the force grows as T^{3/2−p}); at any distance it is at most T/2 before
+/// the kink and 2T after it, never less than `h_min`, where a step crosses
+/// the kink. A kink ahead is the first root of |δ| − r·t − a·t²/2 (r, a: the
+/// pair's speed and acceleration towards it; a comes from the neighbours'
+/// pushes, so a contact that has just opened and is pushed shut again is seen
+/// coming); one behind (moving away) is |δ|/|r| ago. Kinks at T ≥ 2·s0 restrict nothing. On a free line
 /// `s0` is h or the stiffness cap; on a pendulum in free flight it is the
 /// long free-flight step, halved towards each onset.
 ///
