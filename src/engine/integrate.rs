@@ -202,9 +202,10 @@ pub struct StepPlan {
 /// the kink. A kink ahead is the first root of |δ| − r·t − a·t²/2 (r, a: the
 /// pair's speed and acceleration towards it; a comes from the neighbours'
 /// pushes, so a contact that has just opened and is pushed shut again is seen
-/// coming); one behind (moving away) is |δ|/|r| ago. Kinks at T ≥ 2·s0 restrict nothing. On a free line
-/// `s0` is h or the stiffness cap; on a pendulum in free flight it is the
-/// long free-flight step, halved towards each onset.
+/// coming); one behind (moving away) is |δ|/|r| ago. Kinks at T ≥ 2·s0
+/// restrict nothing. On a free line `s0` is h or the stiffness cap; on a
+/// pendulum in free flight it is the long free-flight step, halved towards
+/// each onset.
 ///
 /// (T/t_c)^(q/4) grows with T, so the grading is evaluated once, at the
 /// nearest kink: min over contacts of max(min(cap, h·g(T)), h_min) is
