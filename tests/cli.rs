@@ -327,3 +327,58 @@ fn plots_are_valid_png_and_svg_with_clear_errors() {
     let e = bad_input(&["plot", "--trace", &csv, "--out", &tpng]);
     assert!(e.contains("not a trace"), "{e}");
 }
+
+/// FNV-1a, 64 bits: a fingerprint of a whole output file.
+fn fnv1a(bytes: &[u8]) -> u64 {
+    bytes.iter().fold(0xcbf29ce484222325, |h, &b| {
+        (h ^ b as u64).wrapping_mul(0x100000001b3)
+    })
+}
+
+/// Outputs pinned at e9826e7 (before the second wave's restructuring): a
+/// refactor must not change one byte of them. The committed results are
+/// compared whole; the others by length and FNV-1a hash of the CSV the CPU
+/// backend wrote then. A deliberate change of output regenerates these
+/// (and says so in its commit).
+#[test]
+fn example_outputs_are_byte_identical_to_the_pinned_ones() {
+    let dir = tempfile::tempdir().unwrap();
+    let sweep = |args: &[&str]| -> Vec<u8> {
+        let out = dir.path().join("o.csv");
+        let out = out.to_str().unwrap();
+        let mut a = vec!["sweep"];
+        a.extend_from_slice(args);
+        a.extend(["--out", out, "--backend", "cpu"]);
+        success(&a);
+        fs::read(out).unwrap()
+    };
+    for name in ["mass_gap", "glue_launch"] {
+        let got = sweep(&[&format!("examples/{name}.toml")]);
+        let want = fs::read(format!("results/{name}.csv")).unwrap();
+        assert!(got == want, "examples/{name}.toml differs from results/{name}.csv");
+    }
+    let pinned: [(&[&str], usize, u64); 4] = [
+        (&["examples/grid100.toml"], 3254460, 0x2b9854cb66a5eca1),
+        (
+            &["examples/grid100.toml", "--precision", "f32"],
+            3248497,
+            0x3db46cad049d7c14,
+        ),
+        (
+            &["examples/mass_gap.toml", "--model", "hard-sphere"],
+            2624623,
+            0x453f2d75e23eec9f,
+        ),
+        (
+            &["examples/mass_gap.toml", "--model", "closure"],
+            746586,
+            0xc7e183428670246d,
+        ),
+    ];
+    for (args, len, hash) in pinned {
+        let got = sweep(args);
+        assert_eq!((got.len(), fnv1a(&got)), (len, hash), "{args:?}");
+    }
+    let run = success(&["run", "cradle-1", "--format", "csv"]);
+    assert_eq!((run.len(), fnv1a(&run)), (426, 0x2eb3ce940b047d67));
+}
