@@ -37,7 +37,12 @@ pub enum Command {
         #[arg(long, value_name = "FILE")]
         trace: Option<PathBuf>,
         /// Trace row spacing in simulated seconds [default: 1/20 of the shortest contact time].
-        #[arg(long, value_name = "DT", requires = "trace")]
+        #[arg(
+            long,
+            value_name = "DT",
+            requires = "trace",
+            allow_negative_numbers = true
+        )]
         trace_dt: Option<f64>,
         #[command(flatten)]
         solver: SolverFlags,
@@ -46,32 +51,7 @@ pub enum Command {
     #[command(
         after_help = "Examples:\n  cradle sweep examples/mass_gap.toml --out results/mass_gap.csv\n  cradle sweep big.toml --out big.csv --resume\n  cradle sweep big.toml --out part2.csv --shard 2/4   # then: cradle merge part*.csv --out big.csv"
     )]
-    Sweep {
-        /// Sweep TOML file.
-        sweep: PathBuf,
-        /// Output CSV (written as FILE.partial, renamed when complete; FILE.json beside it).
-        #[arg(long, value_name = "FILE")]
-        out: PathBuf,
-        /// auto: a hardware GPU if there is one, else the CPU.
-        #[arg(long, value_enum, default_value_t = BackendChoice::Auto)]
-        backend: BackendChoice,
-        /// Continue an interrupted run into the same --out file.
-        #[arg(long)]
-        resume: bool,
-        /// Run only shard K of N (1-based; contiguous id ranges balanced in
-        /// expected cost), e.g. 2/4; `slurm`: this task of a Slurm job array.
-        #[arg(long, value_name = "K/N|slurm")]
-        shard: Option<String>,
-        /// Worker threads for the CPU backend [default: all cores].
-        #[arg(long)]
-        threads: Option<usize>,
-        /// Fill the `error_estimate` column: every scene runs a second time with
-        /// steps twice as long (Richardson); costs about 60% more.
-        #[arg(long)]
-        error_estimate: bool,
-        #[command(flatten)]
-        solver: SolverFlags,
-    },
+    Sweep(SweepArgs),
     /// Join shard CSVs into one; refuses if any id is missing or repeated.
     Merge {
         /// Shard CSV files, in any order.
@@ -146,6 +126,40 @@ pub enum Command {
     },
     /// List the built-in scenes.
     Scenes,
+}
+
+/// `cradle sweep`'s raw flags; [`crate::config::SweepConfig`] checks them.
+#[derive(clap::Args, Debug, Clone)]
+#[command(
+    after_help = "Examples:\n  cradle sweep examples/mass_gap.toml --out results/mass_gap.csv\n  cradle sweep big.toml --out big.csv --resume\n  cradle sweep big.toml --out part2.csv --shard 2/4   # then: cradle merge part*.csv --out big.csv"
+)]
+pub struct SweepArgs {
+    /// Sweep TOML file.
+    pub sweep: PathBuf,
+    /// Output CSV (written as FILE.partial, renamed when complete; FILE.json
+    /// beside it; FILE.lock while running). A new name or a regular file;
+    /// a symlink is written through.
+    #[arg(long, value_name = "FILE")]
+    pub out: PathBuf,
+    /// auto: a hardware GPU if there is one, else the CPU.
+    #[arg(long, value_enum, default_value_t = BackendChoice::Auto)]
+    pub backend: BackendChoice,
+    /// Continue an interrupted run into the same --out file.
+    #[arg(long)]
+    pub resume: bool,
+    /// Run only shard K of N (1-based; contiguous id ranges balanced in
+    /// expected cost), e.g. 2/4; `slurm`: this task of a Slurm job array.
+    #[arg(long, value_name = "K/N|slurm")]
+    pub shard: Option<String>,
+    /// Worker threads for the CPU backend [default: all cores].
+    #[arg(long, allow_negative_numbers = true)]
+    pub threads: Option<i64>,
+    /// Fill the `error_estimate` column: every scene runs a second time with
+    /// steps twice as long (Richardson); costs about 60% more.
+    #[arg(long)]
+    pub error_estimate: bool,
+    #[command(flatten)]
+    pub solver: SolverFlags,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -224,7 +238,7 @@ pub struct SolverFlags {
     #[arg(long)]
     pub precision: Option<String>,
     /// Target error of outcome velocities relative to v_in [default: 1e-6 (f64), 1e-5 (f32)].
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub tolerance: Option<f64>,
     /// Physics model: hertz (integrated contacts), hard-sphere (instantaneous
     /// binary collisions, event-driven) or closure (the seed's simultaneous
@@ -277,7 +291,13 @@ impl SolverFlags {
         let tolerance = match self.tolerance {
             None => None,
             Some(t) if t.is_finite() && t > 0.0 && t < 1.0 => Some(t),
-            Some(t) => return Err(flag("--tolerance", &t.to_string(), "a number in (0, 1)")),
+            Some(t) => {
+                return Err(flag(
+                    "--tolerance",
+                    &t.to_string(),
+                    "the tolerance must be > 0 and < 1 (a relative error, e.g. 1e-6)",
+                ))
+            }
         };
         Ok(Overrides {
             model,

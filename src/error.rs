@@ -57,6 +57,16 @@ pub enum InputError {
     },
     #[error("{}: {what}", path.display())]
     Data { path: PathBuf, what: String },
+    #[error(
+        "{} is being written by another cradle ({holder}); wait for it to end or stop it, or choose another --out (lock: {})",
+        path.display(),
+        lock.display()
+    )]
+    Busy {
+        path: PathBuf,
+        holder: String,
+        lock: PathBuf,
+    },
     #[error("{flag} {value}: {allowed}")]
     Flag {
         flag: String,

@@ -11,8 +11,11 @@ use clap::Parser;
 use hertz_cradle::backend::cpu::Cpu;
 use hertz_cradle::backend::gpu::{find_adapter, Gpu, Want};
 use hertz_cradle::backend::Backend;
-use hertz_cradle::cli::{flag, parse_shard, BackendChoice, Cli, Command, Format};
+use hertz_cradle::cli::{flag, BackendChoice, Cli, Command, Format};
+use hertz_cradle::config::SweepConfig;
 use hertz_cradle::engine::{simulate_chain, Chain, Model, Silent, Solver};
+use hertz_cradle::output::guard;
+use hertz_cradle::output::lock::OutputLock;
 use hertz_cradle::output::merge::merge;
 use hertz_cradle::output::{row, trace::TraceWriter};
 use hertz_cradle::plot;
@@ -20,7 +23,13 @@ use hertz_cradle::scene::{builtin, Precision, Scene};
 use hertz_cradle::sweep::{run::Options, Sweep};
 use hertz_cradle::InputError;
 
+/// Largest trace `cradle run --trace` writes (bytes); refused before running.
+const MAX_TRACE_BYTES: f64 = 1e9;
+/// Characters of one trace number (`-1.2345678901234567e-5,`).
+const TRACE_BYTES_PER_NUMBER: f64 = 24.0;
+
 fn main() -> ExitCode {
+    hertz_cradle::backend::gpu::quiet_mesa_without_session();
     let cli = Cli::parse();
     match run(cli) {
         Ok(()) => ExitCode::SUCCESS,
@@ -85,57 +94,32 @@ fn is_broken_pipe(e: &anyhow::Error) -> bool {
 
 fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
-        Command::Sweep {
-            sweep,
-            out,
-            backend,
-            resume,
-            shard,
-            threads,
-            error_estimate,
-            solver,
-        } => {
-            let overrides = solver.overrides()?;
-            let shard = shard.as_deref().map(parse_shard).transpose()?;
-            let spec = Sweep::load(&sweep)?;
-            if let Some(t) = threads {
-                if t == 0 {
-                    return Err(flag("--threads", "0", "at least 1").into());
-                }
+        Command::Sweep(args) => {
+            // Every check (flags, the sweep file, the output path, flags
+            // against the file) before any work or any GPU start-up.
+            let cfg = SweepConfig::from_args(&args)?;
+            if let Some(t) = cfg.threads {
                 rayon::ThreadPoolBuilder::new()
                     .num_threads(t)
                     .build_global()?;
             }
-            if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
-                if !dir.is_dir() {
-                    return Err(flag(
-                        "--out",
-                        &out.display().to_string(),
-                        "a file in an existing directory",
-                    )
-                    .into());
-                }
-            }
-            let precision = Solver::resolve(&spec.base, &overrides)?.precision;
-            let backend = choose_backend(backend, precision)?;
+            let backend = choose_backend(cfg.backend, cfg.precision)?;
             let backend = backend.as_ref();
             let opts = Options {
-                out: out.clone(),
-                resume,
-                shard,
-                overrides,
+                out: cfg.out.clone(),
+                resume: cfg.resume,
+                shard: cfg.shard,
+                overrides: cfg.overrides.clone(),
                 command: std::env::args().collect(),
-                error_estimate,
+                error_estimate: cfg.error_estimate,
             };
-            let s = hertz_cradle::sweep::run::run(&spec, &opts, backend)?;
+            let s = hertz_cradle::sweep::run::run(&cfg.sweep, &opts, backend)?;
+            let out = cfg.out_given.display();
             if s.already_complete {
-                eprintln!(
-                    "cradle: {} is already complete; nothing to resume",
-                    out.display()
-                );
+                eprintln!("cradle: {out} is already complete; nothing to resume");
             } else {
                 eprintln!(
-                    "cradle: {} scenes ({} ok, {} not ok) in {:.2} s, {:.0} scenes/s, backend {} ({}) -> {}",
+                    "cradle: {} scenes ({} ok, {} not ok) in {:.2} s, {:.0} scenes/s, backend {} ({}) -> {out}",
                     s.scenes,
                     s.ok,
                     s.scenes - s.ok,
@@ -143,13 +127,19 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                     s.scenes as f64 / s.wall_s.max(1e-9),
                     backend.name(),
                     backend.adapter(),
-                    out.display()
                 );
             }
             Ok(())
         }
         Command::Merge { inputs, out } => {
-            let n = merge(&inputs, &out)?;
+            let target = guard::output(
+                "--out",
+                &out,
+                &inputs,
+                &[".partial", ".json", ".json.tmp", ".lock"],
+            )?;
+            let _lock = OutputLock::acquire(&target)?;
+            let n = merge(&inputs, &target)?;
             eprintln!(
                 "cradle: merged {} files, {n} rows -> {}",
                 inputs.len(),
@@ -167,8 +157,11 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             title,
             out,
         } => {
+            let input = table.iter().chain(&trace).cloned().collect::<Vec<_>>();
+            let out_path = guard::output("--out", &out, &input, &[])?;
+            let out = &out_path;
             match (table, trace) {
-                (_, Some(tr)) => plot::trace::plot(&tr, title.as_deref(), &out)?,
+                (_, Some(tr)) => plot::trace::plot(&tr, title.as_deref(), out)?,
                 (Some(t), None) => plot::heatmap::plot(
                     &t,
                     &plot::heatmap::Args {
@@ -178,7 +171,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                         wheres,
                         title,
                     },
-                    &out,
+                    out,
                 )?,
                 (None, None) => unreachable!("clap requires a table or --trace"),
             }
@@ -281,6 +274,31 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                         }
                         None => chain.time_scale().map_or(1e-6, |tc| tc / 20.0),
                     };
+                    let inputs: Vec<std::path::PathBuf> = std::path::Path::new(&scene)
+                        .exists()
+                        .then(|| scene.clone().into())
+                        .into_iter()
+                        .collect();
+                    let path = guard::output("--trace", &path, &inputs, &[])?;
+                    // The trace's size, known before it is written: the run's
+                    // end time from a silent run (one scene: milliseconds).
+                    let t_end = simulate_chain(&chain, &solver, &mut Silent).t_end;
+                    let row_bytes = (1 + 2 * chain.n_balls) as f64 * TRACE_BYTES_PER_NUMBER;
+                    let bytes = (t_end / every + 2.0) * row_bytes;
+                    if bytes.is_nan() || bytes > MAX_TRACE_BYTES {
+                        return Err(flag(
+                            "--trace-dt",
+                            &format!("{every:e}"),
+                            &format!(
+                                "the run lasts {t_end:.4e} s: {:.0} rows, about {:.1} GB of trace (at most {:.0} GB); use --trace-dt ≥ {:.1e}",
+                                t_end / every,
+                                bytes / 1e9,
+                                MAX_TRACE_BYTES / 1e9,
+                                t_end * row_bytes / (MAX_TRACE_BYTES - 2.0 * row_bytes)
+                            ),
+                        )
+                        .into());
+                    }
                     let file = File::create(&path)
                         .with_context(|| format!("cannot create trace file {}", path.display()))?;
                     let mut tw = TraceWriter::new(BufWriter::new(file), &chain, every)?;

@@ -355,7 +355,10 @@ fn example_outputs_are_byte_identical_to_the_pinned_ones() {
     for name in ["mass_gap", "glue_launch"] {
         let got = sweep(&[&format!("examples/{name}.toml")]);
         let want = fs::read(format!("results/{name}.csv")).unwrap();
-        assert!(got == want, "examples/{name}.toml differs from results/{name}.csv");
+        assert!(
+            got == want,
+            "examples/{name}.toml differs from results/{name}.csv"
+        );
     }
     let pinned: [(&[&str], usize, u64); 4] = [
         (&["examples/grid100.toml"], 3254460, 0x2b9854cb66a5eca1),

@@ -112,6 +112,21 @@ fn is_hardware(t: wgpu::DeviceType) -> bool {
     )
 }
 
+/// Call first in `main`, before any thread starts (it may set an environment
+/// variable). Without a desktop session (no XDG_RUNTIME_DIR: ssh, batch jobs,
+/// CI), Mesa's Vulkan device-select layer tries to reach a Wayland compositor
+/// to learn the default GPU and prints "XDG_RUNTIME_DIR is invalid or not
+/// set" twice per run, although nothing is wrong. `find_adapter` ranks the
+/// adapters itself, so the layer has nothing to add: switch it off then
+/// (its documented switch, NODEVICE_SELECT).
+pub fn quiet_mesa_without_session() {
+    if std::env::var_os("XDG_RUNTIME_DIR").is_none()
+        && std::env::var_os("NODEVICE_SELECT").is_none()
+    {
+        std::env::set_var("NODEVICE_SELECT", "1");
+    }
+}
+
 /// The adapter a backend would use, or `None`.
 pub fn find_adapter(want: Want) -> Option<wgpu::Adapter> {
     let instance =

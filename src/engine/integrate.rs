@@ -779,7 +779,7 @@ impl<R: Real, const L: usize> Lanes<R, L> {
             let (va, vb) = (&self.v[c], &self.v[c + 1]);
             // Lanes four at a time (one AVX vector of f64): where the contact
             // is open in all four, the force is 0 without a square root.
-            let w = if L % 4 == 0 { 4 } else { L };
+            let w = if L.is_multiple_of(4) { 4 } else { L };
             for j in (0..L).step_by(w) {
                 let mut any = false;
                 for l in j..j + w {

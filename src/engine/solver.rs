@@ -14,6 +14,12 @@ pub const DEFAULT_METHOD: Method = Method::KahanLi6;
 pub const DEFAULT_TOLERANCE: f64 = 1e-6;
 /// Smallest tolerance f32 arithmetic can honour (round-off floor).
 pub const F32_TOLERANCE_FLOOR: f64 = 1e-5;
+
+/// Smallest tolerance in f64. Round-off in the outcome velocities is ~1e-14
+/// (cradle-1: kahanli6's results scatter by 5e-15 from 1e-13 down; Verlet at
+/// 1e-14 reaches the 5e7-step cap), so 1e-12 keeps it below 1% of the
+/// tolerance; the work-precision reference runs at 1e-11.
+pub const F64_TOLERANCE_FLOOR: f64 = 1e-12;
 /// Default step cap per scene.
 pub const DEFAULT_MAX_STEPS: u64 = 50_000_000;
 /// Default cap on simulated time for a free line (s). Free flight costs no
@@ -179,13 +185,22 @@ impl Solver {
                 Precision::F32 => F32_TOLERANCE_FLOOR,
             }),
         };
-        if let (StepRule::Tolerance(t), Precision::F32) = (step, precision) {
-            if t < F32_TOLERANCE_FLOOR {
+        if let StepRule::Tolerance(t) = step {
+            let floor = match precision {
+                Precision::F32 => F32_TOLERANCE_FLOOR,
+                Precision::F64 => F64_TOLERANCE_FLOOR,
+            };
+            if t < floor {
+                let other = match precision {
+                    Precision::F32 => "use --precision f64 or ",
+                    Precision::F64 => "use ",
+                };
                 return Err(InputError::Flag {
                     flag: "tolerance".into(),
                     value: format!("{t:e}"),
                     allowed: format!(
-                        "below the f32 round-off floor {F32_TOLERANCE_FLOOR:e}; use --precision f64 or a tolerance ≥ {F32_TOLERANCE_FLOOR:e}"
+                        "below the {} round-off floor {floor:e} (round-off would swamp it: every scene would run to the step cap); {other}a tolerance ≥ {floor:e}",
+                        precision.name()
                     ),
                 });
             }
@@ -199,6 +214,66 @@ impl Solver {
             max_time: scene.duration.unwrap_or(DEFAULT_MAX_TIME),
             step_factor: 1.0,
         })
+    }
+
+    /// One rule for a setting given both as a flag and in a file: the same
+    /// value is fine, different values are an error naming both (a row must
+    /// never be labelled with a setting it was not computed with). `origin`
+    /// names the file that holds `scene`.
+    pub fn check_flags_against(
+        scene: &Scene,
+        o: &Overrides,
+        origin: &str,
+    ) -> Result<(), InputError> {
+        let conflict = |flag: &str, value: String, key: &str, file_value: String| {
+            InputError::Flag {
+            flag: flag.into(),
+            value,
+            allowed: format!(
+                "{origin} sets [solver] {key} = {file_value}: give this setting in one place (remove the flag or the key)"
+            ),
+        }
+        };
+        let f = &scene.solver;
+        if let (Some(a), Some(b)) = (o.method, f.method) {
+            if a != b {
+                return Err(conflict(
+                    "--method",
+                    a.name().into(),
+                    "method",
+                    format!("{:?}", b.name()),
+                ));
+            }
+        }
+        if let (Some(a), Some(b)) = (o.precision, f.precision) {
+            if a != b {
+                return Err(conflict(
+                    "--precision",
+                    a.name().into(),
+                    "precision",
+                    format!("{:?}", b.name()),
+                ));
+            }
+        }
+        if let Some(t) = o.tolerance {
+            if let Some(dt) = f.dt {
+                return Err(conflict(
+                    "--tolerance",
+                    format!("{t:e}"),
+                    "dt",
+                    format!("{dt:e} (a fixed step)"),
+                ));
+            }
+            if let Some(b) = f.tolerance.filter(|b| *b != t) {
+                return Err(conflict(
+                    "--tolerance",
+                    format!("{t:e}"),
+                    "tolerance",
+                    format!("{b:e}"),
+                ));
+            }
+        }
+        Ok(())
     }
 
     /// The step (s) for this chain; `None` when nothing can collide.

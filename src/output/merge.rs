@@ -1,123 +1,276 @@
-//! `cradle merge`: join shard CSVs into one, refusing any missing or repeated id.
-//! Rows are copied byte for byte, so the merge of a sweep's shards equals the
-//! unsharded run's file.
+//! `cradle merge`: join shard CSVs into one. Rows are copied byte for byte,
+//! so the merge of a sweep's shards equals the unsharded run's file.
+//!
+//! Nothing is taken on trust: every part must have its sidecar (`FILE.json`,
+//! written when the part completed), and the sidecars must agree on the sweep
+//! and the solver settings (their fingerprints, less the shard). A part must
+//! hold exactly the ids its sidecar names, and the parts together every id of
+//! the sweep once. The merged file gets a sidecar of its own, whose
+//! fingerprint is the unsharded run's: `cradle sweep --resume` onto it
+//! recognises it as complete.
 
 use std::fs::File;
 use std::io::{BufRead, BufReader, BufWriter, Write};
 use std::path::{Path, PathBuf};
 
-use anyhow::{bail, Context, Result};
+use anyhow::{Context, Result};
+use serde_json::Value;
 
-use super::partial::partial_path;
+use super::partial::{partial_path, write_atomic};
+use crate::error::InputError;
 
 fn first_id(line: &[u8]) -> Option<u64> {
     let end = line.iter().position(|&b| b == b',').unwrap_or(line.len());
     std::str::from_utf8(&line[..end]).ok()?.trim().parse().ok()
 }
 
-/// Total scene count recorded in a CSV's sidecar, if there is one.
-fn sidecar_total(csv: &Path) -> Option<u64> {
-    let text = std::fs::read_to_string(super::sidecar::path(csv)).ok()?;
-    serde_json::from_str::<serde_json::Value>(&text)
-        .ok()?
-        .get("total_scenes")?
-        .as_u64()
+fn bad(path: &Path, what: impl Into<String>) -> anyhow::Error {
+    InputError::Data {
+        path: path.to_path_buf(),
+        what: what.into(),
+    }
+    .into()
+}
+
+/// One part: its file, its sidecar, the id range the sidecar names.
+struct Part {
+    path: PathBuf,
+    sidecar: Value,
+    ids: (u64, u64),
+}
+
+/// The fingerprint with its shard removed: what every part must share.
+fn sweep_key(fingerprint: &str) -> Option<Value> {
+    let mut v: Value = serde_json::from_str(fingerprint).ok()?;
+    v.as_object_mut()?.insert("shard".into(), Value::Null);
+    Some(v)
+}
+
+fn read_part(p: &Path) -> Result<Part> {
+    let sc = super::sidecar::path(p);
+    let text = std::fs::read_to_string(&sc).map_err(|e| {
+        bad(
+            p,
+            format!(
+                "its sidecar {} cannot be read ({e}): merge needs it to know the sweep and the ids this part holds; run the shard again (with --resume if it was interrupted)",
+                sc.display()
+            ),
+        )
+    })?;
+    let sidecar: Value = serde_json::from_str(&text).map_err(|e| {
+        bad(
+            &sc,
+            format!("not a cradle sidecar ({e}); run the shard again"),
+        )
+    })?;
+    let ids = sidecar
+        .get("ids")
+        .and_then(|v| Some((v.get(0)?.as_u64()?, v.get(1)?.as_u64()?)))
+        .filter(|(lo, hi)| lo <= hi);
+    let Some(ids) = ids else {
+        return Err(bad(&sc, "no valid `ids` range; run the shard again"));
+    };
+    Ok(Part {
+        path: p.to_path_buf(),
+        sidecar,
+        ids,
+    })
 }
 
 /// Merge `inputs` into `out`; returns the number of rows.
 pub fn merge(inputs: &[PathBuf], out: &Path) -> Result<u64> {
-    if inputs.is_empty() {
-        bail!("nothing to merge");
-    }
-    // Order the files by their first id; each holds a contiguous id range.
-    let mut files = Vec::new();
-    let mut header: Option<Vec<u8>> = None;
-    let mut total = None;
-    for p in inputs {
-        let mut r =
-            BufReader::new(File::open(p).with_context(|| format!("cannot read {}", p.display()))?);
-        let mut h = Vec::new();
-        r.read_until(b'\n', &mut h)?;
-        match &header {
-            None => header = Some(h.clone()),
-            Some(h0) if *h0 != h => bail!(
-                "{}: its header differs from {}",
-                p.display(),
-                inputs[0].display()
-            ),
-            _ => {}
+    let Some(first) = inputs.first() else {
+        return Err(InputError::Flag {
+            flag: "merge".into(),
+            value: "(no files)".into(),
+            allowed: "one or more shard CSVs".into(),
         }
-        let mut first = Vec::new();
-        r.read_until(b'\n', &mut first)?;
-        let id = if first.is_empty() {
-            u64::MAX
-        } else {
-            first_id(&first).with_context(|| format!("{}: no id in its first row", p.display()))?
-        };
-        if let Some(t) = sidecar_total(p) {
-            if total.is_some_and(|t0| t0 != t) {
-                bail!(
-                    "{}: from a sweep of {t} scenes, the others from {}",
-                    p.display(),
-                    total.unwrap()
-                );
-            }
-            total = Some(t);
+        .into());
+    };
+    let mut parts = inputs
+        .iter()
+        .map(|p| read_part(p))
+        .collect::<Result<Vec<_>>>()?;
+    let fp = |p: &Part| {
+        p.sidecar
+            .get("fingerprint")
+            .and_then(|f| f.as_str())
+            .and_then(sweep_key)
+    };
+    let key0 = fp(&parts[0]);
+    let total = parts[0]
+        .sidecar
+        .get("total_scenes")
+        .and_then(|t| t.as_u64());
+    let (Some(key0), Some(total)) = (key0, total) else {
+        return Err(bad(
+            first,
+            "its sidecar has no fingerprint or scene count (made by an older cradle?); run the shard again",
+        ));
+    };
+    for p in &parts[1..] {
+        if fp(p).as_ref() != Some(&key0) {
+            return Err(bad(
+                &p.path,
+                format!(
+                    "made by a different sweep or solver settings than {} (their sidecars' fingerprints differ): merge only shards of one `cradle sweep` command",
+                    first.display()
+                ),
+            ));
         }
-        files.push((id, p.clone()));
     }
-    files.sort();
-    let header = header.unwrap();
-    let tmp = partial_path(out);
-    let mut w = BufWriter::new(
-        File::create(&tmp).with_context(|| format!("cannot create {}", tmp.display()))?,
-    );
-    w.write_all(&header)?;
+    // Each part holds one contiguous id range; together they must tile 0..total.
+    parts.sort_by_key(|p| p.ids);
     let mut next = 0u64;
+    for p in &parts {
+        if p.ids.0 > next {
+            return Err(bad(
+                &p.path,
+                format!(
+                    "ids {next} ..= {} are missing: in no part (this one starts at {}); the sweep has {total} scenes: add the missing shard",
+                    p.ids.0 - 1,
+                    p.ids.0
+                ),
+            ));
+        }
+        if p.ids.0 < next {
+            return Err(bad(
+                &p.path,
+                format!(
+                    "ids {} .. {} appear more than once (again in this part): give each shard once",
+                    p.ids.0,
+                    next.min(p.ids.1)
+                ),
+            ));
+        }
+        next = p.ids.1;
+    }
+    if next != total {
+        return Err(bad(
+            &parts[parts.len() - 1].path,
+            format!(
+                "ids {next} ..= {} are missing: in no part, and the sweep has {total} scenes; add the missing shard",
+                total - 1
+            ),
+        ));
+    }
+
+    let tmp = partial_path(out);
+    let r = copy_rows(&parts, &tmp);
+    if r.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    let n = r?;
+
+    let mut sc = parts[0].sidecar.clone();
+    let sum = |k: &str| -> f64 {
+        parts
+            .iter()
+            .filter_map(|p| p.sidecar.get(k)?.as_f64())
+            .sum()
+    };
+    let obj = sc.as_object_mut().expect("checked: a JSON object");
+    obj.insert(
+        "command".into(),
+        std::env::args().collect::<Vec<_>>().into(),
+    );
+    obj.insert("ids".into(), serde_json::json!([0, total]));
+    obj.insert("shard".into(), Value::Null);
+    obj.insert("scenes_ok".into(), (sum("scenes_ok") as u64).into());
+    obj.insert("scenes_not_ok".into(), (sum("scenes_not_ok") as u64).into());
+    obj.insert("wall_s".into(), sum("wall_s").into());
+    obj.insert(
+        "scenes_per_s".into(),
+        (n as f64 / sum("wall_s").max(1e-9)).into(),
+    );
+    obj.insert("fingerprint".into(), serde_json::to_string(&key0)?.into());
+    obj.insert(
+        "merged_from".into(),
+        parts
+            .iter()
+            .map(|p| p.path.display().to_string())
+            .collect::<Vec<_>>()
+            .into(),
+    );
+    for k in ["resumed_from_row", "wall_s_this_run"] {
+        obj.remove(k);
+    }
+    write_atomic(
+        &super::sidecar::path(out),
+        (serde_json::to_string_pretty(&sc)? + "\n").as_bytes(),
+    )?;
+    std::fs::rename(&tmp, out)
+        .with_context(|| format!("cannot rename {} to {}", tmp.display(), out.display()))?;
+    Ok(n)
+}
+
+/// Copy every part's rows to `tmp` after one header, checking each part holds
+/// exactly its ids; returns the row count.
+fn copy_rows(parts: &[Part], tmp: &Path) -> Result<u64> {
+    let mut w = BufWriter::new(
+        File::create(tmp).with_context(|| format!("cannot create {}", tmp.display()))?,
+    );
+    let mut header: Option<Vec<u8>> = None;
     let mut line = Vec::new();
-    for (_, p) in &files {
-        let mut r = BufReader::new(File::open(p)?);
+    let mut n = 0;
+    for p in parts {
+        let mut r = BufReader::new(
+            File::open(&p.path).with_context(|| format!("cannot read {}", p.path.display()))?,
+        );
         line.clear();
         r.read_until(b'\n', &mut line)?;
+        match &header {
+            None => {
+                w.write_all(&line)?;
+                header = Some(line.clone());
+            }
+            Some(h) if *h != line => {
+                return Err(bad(
+                    &p.path,
+                    format!("its header differs from {}'s", parts[0].path.display()),
+                ))
+            }
+            _ => {}
+        }
+        let mut next = p.ids.0;
         loop {
             line.clear();
             if r.read_until(b'\n', &mut line)? == 0 {
                 break;
             }
             if line.last() != Some(&b'\n') {
-                bail!(
-                    "{}: its last row is incomplete (an interrupted run? finish it with --resume)",
-                    p.display()
-                );
+                return Err(bad(
+                    &p.path,
+                    "its last row is incomplete (an interrupted run? finish it with --resume)",
+                ));
             }
-            let id =
-                first_id(&line).with_context(|| format!("{}: a row without an id", p.display()))?;
-            if id != next {
-                let _ = std::fs::remove_file(&tmp);
-                if id < next {
-                    bail!("id {id} appears more than once (again in {})", p.display());
-                }
-                bail!(
-                    "ids {next} ..= {} are missing (next found: {id} in {})",
-                    id - 1,
-                    p.display()
-                );
+            let id = first_id(&line).ok_or_else(|| bad(&p.path, "a row without an id"))?;
+            if id != next || id >= p.ids.1 {
+                return Err(bad(
+                    &p.path,
+                    format!(
+                        "row with id {id} where its sidecar's range {} .. {} expects {next}: the file was changed after it was written; run the shard again",
+                        p.ids.0, p.ids.1
+                    ),
+                ));
             }
-            w.write_all(&line)?;
+            w.write_all(&line)
+                .with_context(|| format!("cannot write {}", tmp.display()))?;
             next += 1;
+            n += 1;
+        }
+        if next != p.ids.1 {
+            return Err(bad(
+                &p.path,
+                format!(
+                    "holds ids {} .. {next} but its sidecar says {} .. {}: the file was cut short after it was written; run the shard again",
+                    p.ids.0, p.ids.0, p.ids.1
+                ),
+            ));
         }
     }
-    if let Some(t) = total {
-        if next != t {
-            let _ = std::fs::remove_file(&tmp);
-            bail!(
-                "ids {next} ..= {} are missing: the sweep has {t} scenes",
-                t - 1
-            );
-        }
-    }
-    w.flush()?;
-    drop(w);
-    std::fs::rename(&tmp, out)?;
-    Ok(next)
+    w.flush()
+        .and_then(|_| w.get_ref().sync_all())
+        .with_context(|| format!("cannot write {}", tmp.display()))?;
+    Ok(n)
 }

@@ -1,5 +1,8 @@
 //! Writers: outcome rows (CSV and tables) and trajectories.
 
+pub mod failpoint;
+pub mod guard;
+pub mod lock;
 pub mod merge;
 pub mod partial;
 pub mod row;

@@ -1,41 +1,80 @@
 //! Crash-safe CSV output: rows go to `FILE.partial` (flushed after every
 //! batch) and the file is renamed to `FILE` only when complete, so a killed
 //! run never leaves a file that looks complete. `--resume` truncates the
-//! partial file to its last complete row and continues after it; a
-//! fingerprint file (`FILE.partial.spec`) refuses to resume another sweep.
+//! partial file to its last complete row and continues after it.
+//!
+//! What a run must share with the one it resumes is its fingerprint (sweep,
+//! shard, solver flags, version). It is kept in `FILE.partial.spec` while the
+//! run is unfinished and in the sidecar `FILE.json` once it is complete, and
+//! it is checked on every `--resume`: a partial or complete file of another
+//! sweep is refused, never continued and never taken as done. The spec file
+//! also carries the wall time of the earlier runs, so the sidecar of a
+//! resumed run covers the whole file. It is replaced atomically (write,
+//! rename), so a kill never leaves half of it.
+//!
+//! The caller holds the output's lock (`output::lock`) for the whole run.
 
 use std::fs::{self, File, OpenOptions};
 use std::io::{BufRead, BufReader, Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};
 
-use anyhow::{bail, Context, Result};
+use anyhow::{Context, Result};
+
+use super::guard::with_suffix;
+use crate::error::InputError;
 
 pub struct PartialCsv {
     pub path: PathBuf,
     partial: PathBuf,
     spec: PathBuf,
+    fingerprint: String,
     file: File,
-    /// Rows already in the file (from an earlier run, when resuming).
+    /// Rows already in the file (from earlier runs, when resuming).
     pub rows_done: u64,
+    /// Rows of earlier runs whose status is `ok`.
+    pub ok_done: u64,
+    /// Wall time of earlier runs (s), up to their last saved progress.
+    pub wall_before: f64,
 }
 
 pub fn partial_path(out: &Path) -> PathBuf {
-    let mut s = out.as_os_str().to_owned();
-    s.push(".partial");
-    PathBuf::from(s)
+    with_suffix(out, ".partial")
 }
 
 fn spec_path(out: &Path) -> PathBuf {
-    let mut s = out.as_os_str().to_owned();
-    s.push(".partial.spec");
-    PathBuf::from(s)
+    with_suffix(out, ".partial.spec")
 }
 
 /// What `open` found.
 pub enum Opened {
     Writing(PartialCsv),
-    /// `--resume` of a run whose output is already complete.
+    /// `--resume` of a run whose output is already complete, made by this
+    /// same sweep (the sidecar's fingerprint agrees).
     AlreadyComplete,
+}
+
+/// Write `text` to `path` atomically: a temporary file beside it, synced,
+/// then renamed over it.
+pub fn write_atomic(path: &Path, text: &[u8]) -> Result<()> {
+    let tmp = with_suffix(path, ".tmp");
+    let r = (|| -> std::io::Result<()> {
+        let mut f = File::create(&tmp)?;
+        f.write_all(text)?;
+        f.sync_all()?;
+        fs::rename(&tmp, path)
+    })();
+    if r.is_err() {
+        let _ = fs::remove_file(&tmp);
+    }
+    r.with_context(|| format!("cannot write {}", path.display()))
+}
+
+fn mismatch(path: &Path, what: String) -> anyhow::Error {
+    InputError::Data {
+        path: path.to_path_buf(),
+        what,
+    }
+    .into()
 }
 
 impl PartialCsv {
@@ -45,55 +84,105 @@ impl PartialCsv {
         let partial = partial_path(out);
         let spec = spec_path(out);
         if resume && partial.exists() {
-            let old = fs::read_to_string(&spec).unwrap_or_default();
-            if old != fingerprint {
-                bail!(
-                    "cannot resume {}: it was written by a different sweep, solver or shard (see {}); run without --resume to start over",
-                    partial.display(),
-                    spec.display()
-                );
+            let text = fs::read_to_string(&spec).unwrap_or_default();
+            let mut lines = text.lines();
+            if lines.next() != Some(fingerprint) {
+                return Err(mismatch(
+                    &partial,
+                    format!(
+                        "cannot resume: it was written by a different sweep, solver or shard (or its {} is missing); run without --resume to start over",
+                        spec.display()
+                    ),
+                ));
             }
-            let (keep, rows) = complete_prefix(&partial, header)?;
-            let mut file = OpenOptions::new().read(true).write(true).open(&partial)?;
+            let wall_before = lines
+                .next()
+                .and_then(|w| w.trim().parse::<f64>().ok())
+                .filter(|w| w.is_finite() && *w >= 0.0)
+                .unwrap_or(0.0);
+            let (keep, rows, ok) = complete_prefix(&partial, header)?;
+            let mut file = OpenOptions::new()
+                .read(true)
+                .write(true)
+                .open(&partial)
+                .with_context(|| format!("cannot open {}", partial.display()))?;
             file.set_len(keep)?;
             file.seek(SeekFrom::End(0))?;
             return Ok(Opened::Writing(PartialCsv {
                 path: out.to_path_buf(),
                 partial,
                 spec,
+                fingerprint: fingerprint.to_string(),
                 file,
                 rows_done: rows,
+                ok_done: ok,
+                wall_before,
             }));
         }
         if resume && out.exists() {
-            return Ok(Opened::AlreadyComplete);
+            let sidecar = super::sidecar::path(out);
+            return match super::sidecar::fingerprint(&sidecar) {
+                Some(f) if f == fingerprint => Ok(Opened::AlreadyComplete),
+                found => Err(mismatch(
+                    out,
+                    format!(
+                        "cannot resume: the file is complete but {}; run without --resume to replace it, or choose another --out",
+                        if found.is_some() {
+                            format!("was made by a different sweep, solver or shard (see {})", sidecar.display())
+                        } else {
+                            format!("its sidecar {} is missing or unreadable, so nothing says which sweep made it", sidecar.display())
+                        }
+                    ),
+                )),
+            };
         }
-        fs::write(&spec, fingerprint)
-            .with_context(|| format!("cannot write {}", spec.display()))?;
+        write_atomic(&spec, format!("{fingerprint}\n0\n").as_bytes())?;
         let mut file = File::create(&partial)
             .with_context(|| format!("cannot create {}", partial.display()))?;
-        file.write_all(header)?;
-        file.sync_data()?;
+        file.write_all(header)
+            .and_then(|_| file.sync_data())
+            .with_context(|| format!("cannot write {}", partial.display()))?;
         Ok(Opened::Writing(PartialCsv {
             path: out.to_path_buf(),
             partial,
             spec,
+            fingerprint: fingerprint.to_string(),
             file,
             rows_done: 0,
+            ok_done: 0,
+            wall_before: 0.0,
         }))
     }
 
-    /// Append complete rows and push them to disk.
+    /// Append complete rows and push them to the file.
     pub fn append(&mut self, rows: &[u8]) -> Result<()> {
-        self.file.write_all(rows)?;
-        self.file.flush()?;
-        Ok(())
+        crate::output::failpoint::check("append")
+            .and_then(|_| self.file.write_all(rows))
+            .and_then(|_| self.file.flush())
+            .with_context(|| format!("cannot write {}", self.partial.display()))
     }
 
-    /// All rows written: make the file visible under its final name.
-    pub fn finish(self) -> Result<()> {
-        self.file.sync_all()?;
+    /// Save the wall time of all runs so far (`wall` s), for the sidecar of
+    /// a later resume.
+    pub fn save_wall(&self, wall: f64) -> Result<()> {
+        write_atomic(
+            &self.spec,
+            format!("{}\n{wall}\n", self.fingerprint).as_bytes(),
+        )
+    }
+
+    /// All rows written: write the sidecar (`sidecar`: its path and text),
+    /// then make the CSV visible under its final name. The sidecar goes
+    /// first: if the run dies between the two renames, the `.partial` is
+    /// still there and `--resume` finishes it.
+    pub fn finish(self, sidecar: (&Path, &[u8])) -> Result<()> {
+        self.file
+            .sync_all()
+            .with_context(|| format!("cannot write {}", self.partial.display()))?;
         drop(self.file);
+        crate::output::failpoint::check("sidecar")
+            .with_context(|| format!("cannot write {}", sidecar.0.display()))?;
+        write_atomic(sidecar.0, sidecar.1)?;
         fs::rename(&self.partial, &self.path).with_context(|| {
             format!(
                 "cannot rename {} to {}",
@@ -106,19 +195,26 @@ impl PartialCsv {
     }
 }
 
-/// Length in bytes of the header plus every complete row, and the row count.
-fn complete_prefix(partial: &Path, header: &[u8]) -> Result<(u64, u64)> {
-    let mut r = BufReader::new(File::open(partial)?);
+/// Length in bytes of the header plus every complete row, the row count and
+/// how many of those rows have status `ok`.
+fn complete_prefix(partial: &Path, header: &[u8]) -> Result<(u64, u64, u64)> {
+    let mut r = BufReader::new(
+        File::open(partial).with_context(|| format!("cannot read {}", partial.display()))?,
+    );
     let mut line = Vec::new();
     r.read_until(b'\n', &mut line)?;
     if line != header {
-        bail!(
-            "cannot resume {}: its header differs from this sweep's",
-            partial.display()
-        );
+        return Err(mismatch(
+            partial,
+            "cannot resume: its header differs from this sweep's; run without --resume to start over".into(),
+        ));
     }
+    let status = String::from_utf8_lossy(&line)
+        .trim_end()
+        .split(',')
+        .position(|c| c == "status");
     let mut keep = line.len() as u64;
-    let mut rows = 0;
+    let (mut rows, mut ok) = (0, 0);
     loop {
         line.clear();
         let n = r.read_until(b'\n', &mut line)?;
@@ -127,6 +223,9 @@ fn complete_prefix(partial: &Path, header: &[u8]) -> Result<(u64, u64)> {
         }
         keep += n as u64;
         rows += 1;
+        if let Some(i) = status {
+            ok += (line.split(|&b| b == b',').nth(i) == Some(b"ok")) as u64;
+        }
     }
-    Ok((keep, rows))
+    Ok((keep, rows, ok))
 }

@@ -59,29 +59,34 @@ pub fn num(x: f64) -> String {
     }
 }
 
-/// The fields of one row; missing balls (N below `width`) are empty.
+/// The fields of one row; missing balls (N below `width`) are empty. A
+/// `non_finite` run's state is garbage (±inf, 1e130): its velocities,
+/// displacements, `ejected` and energy/momentum/overlap columns are empty
+/// rather than numbers that look like results.
 pub fn fields(id: u64, axis_values: &[String], o: &Outcome, shape: Shape) -> Vec<String> {
     let width = shape.width;
+    let garbage = o.status == Status::NonFinite;
+    let state = |x: f64| if garbage { String::new() } else { num(x) };
     let mut r = Vec::with_capacity(14 + axis_values.len() + 2 * width);
     r.push(id.to_string());
     r.extend(axis_values.iter().cloned());
     r.push(o.status.name().to_string());
-    r.extend((0..width).map(|i| o.v.get(i).map_or(String::new(), |&v| num(v))));
+    r.extend((0..width).map(|i| o.v.get(i).map_or(String::new(), |&v| state(v))));
     if shape.pendulum {
-        r.extend((0..width).map(|i| o.x.get(i).map_or(String::new(), |&x| num(x))));
+        r.extend((0..width).map(|i| o.x.get(i).map_or(String::new(), |&x| state(x))));
     }
-    r.push(if o.status == Status::Invalid {
+    r.push(if o.status == Status::Invalid || garbage {
         String::new()
     } else {
         o.ejected.to_string()
     });
     for x in [o.energy_error, o.momentum_error, o.max_overlap_m] {
-        r.push(num(x));
+        r.push(state(x));
     }
     r.push(o.steps.to_string());
     r.push(o.contacts.to_string());
-    r.push(num(o.energy_left));
-    r.push(num(o.energy_last));
+    r.push(state(o.energy_left));
+    r.push(state(o.energy_last));
     for x in [o.t_contact, o.t_release, o.dt, o.error_estimate] {
         r.push(num(x));
     }
@@ -150,5 +155,52 @@ mod tests {
             assert_eq!(num(x).parse::<f64>().unwrap(), x);
         }
         assert_eq!(num(f64::NAN), "");
+    }
+
+    #[test]
+    fn a_non_finite_row_shows_no_garbage_state() {
+        use crate::engine::{Outcome, Status};
+        let o = Outcome {
+            status: Status::NonFinite,
+            v: vec![f64::INFINITY, -1e130, 0.5],
+            ejected: 2,
+            energy_error: f64::INFINITY,
+            momentum_error: 1e130,
+            max_overlap_m: f64::NEG_INFINITY,
+            steps: 77,
+            energy_left: 1e130,
+            energy_last: f64::INFINITY,
+            contacts: 3,
+            x: vec![1e130; 3],
+            t_end: 1.0,
+            t_contact: 1e-4,
+            t_release: 2e-4,
+            dt: 1e-7,
+            error_estimate: f64::NAN,
+        };
+        let shape = super::Shape {
+            width: 3,
+            pendulum: true,
+        };
+        let f = super::fields(4, &["0.5".into()], &o, shape);
+        let h = super::header(&["mass".into()], shape);
+        let col = |c: &str| f[h.iter().position(|x| x == c).unwrap()].as_str();
+        assert_eq!((col("id"), col("status")), ("4", "non_finite"));
+        for c in [
+            "v_0",
+            "v_1",
+            "v_2",
+            "x_0",
+            "ejected",
+            "energy_error",
+            "momentum_error",
+            "max_overlap_m",
+            "energy_left",
+            "energy_last",
+        ] {
+            assert_eq!(col(c), "", "{c}");
+        }
+        assert_eq!((col("steps"), col("dt")), ("77", "1e-7"));
+        assert!(f.iter().all(|x| !x.contains("inf") && !x.contains("e130")));
     }
 }

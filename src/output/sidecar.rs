@@ -28,10 +28,15 @@ pub struct Sidecar<'a, S: Serialize> {
     pub shard: Option<[u64; 2]>,
     pub scenes_ok: u64,
     pub scenes_not_ok: u64,
-    /// Wall time of this run (s); a resumed run counts only its own part.
+    /// Wall time of every run that wrote this file (s): a resumed run adds
+    /// the earlier runs' time up to their last saved batch.
     pub wall_s: f64,
     pub scenes_per_s: f64,
     pub resumed_from_row: u64,
+    /// Wall time of this run alone (s).
+    pub wall_s_this_run: f64,
+    /// What a `--resume` must agree with: sweep, shard, solver flags, version.
+    pub fingerprint: &'a str,
 }
 
 pub const GIT_REVISION: &str = match option_env!("CRADLE_GIT_REV") {
@@ -39,8 +44,14 @@ pub const GIT_REVISION: &str = match option_env!("CRADLE_GIT_REV") {
     None => "unknown",
 };
 
-pub fn write<S: Serialize>(csv: &Path, s: &Sidecar<S>) -> anyhow::Result<()> {
-    let text = serde_json::to_string_pretty(s)?;
-    std::fs::write(path(csv), text + "\n")?;
-    Ok(())
+/// The sidecar's text.
+pub fn text<S: Serialize>(s: &Sidecar<S>) -> anyhow::Result<String> {
+    Ok(serde_json::to_string_pretty(s)? + "\n")
+}
+
+/// The fingerprint a sidecar records, if it can be read.
+pub fn fingerprint(sidecar: &Path) -> Option<String> {
+    let text = std::fs::read_to_string(sidecar).ok()?;
+    let v: serde_json::Value = serde_json::from_str(&text).ok()?;
+    Some(v.get("fingerprint")?.as_str()?.to_string())
 }

@@ -94,6 +94,37 @@ impl Param {
         }
     }
 
+    /// Two axes that set the same scene quantity: the second would overwrite
+    /// the first (or discard it: a `velocity[i]` axis replaces `[launch]`,
+    /// `dt` and `tolerance` replace each other), so the table would show
+    /// values that were never used.
+    pub fn overlaps(&self, other: &Param) -> bool {
+        fn group(p: &Param) -> &str {
+            match p.name.as_str() {
+                "density" | "mass" => "mass",
+                "velocity" | "launch.height" | "launch.velocity" => "velocity",
+                "tolerance" | "dt" => "step",
+                n => n,
+            }
+        }
+        if group(self) != group(other) {
+            // launch.balls decides which balls a launch speed applies to; a
+            // velocity[i] axis removes the launch altogether.
+            return matches!(
+                (self.name.as_str(), other.name.as_str()),
+                ("velocity", "launch.balls") | ("launch.balls", "velocity")
+            );
+        }
+        match (self.name.as_str(), other.name.as_str()) {
+            // Different balls' velocities are independent.
+            ("velocity", "velocity") => self.index == other.index,
+            _ => match (self.index, other.index) {
+                (Some(i), Some(j)) => i == j,
+                _ => true,
+            },
+        }
+    }
+
     /// Largest index this parameter allows in a chain of `n` balls.
     pub fn index_limit(&self, n: usize) -> Option<usize> {
         match self.kind {
@@ -131,39 +162,111 @@ impl std::fmt::Display for Value {
     }
 }
 
-/// Evenly spaced values, start + i·step.
-pub fn linspace(start: f64, stop: f64, num: usize) -> Vec<f64> {
+/// The values of one axis, computed on demand from their index (a
+/// 10^7-value range costs nothing until a scene asks for one).
+#[derive(Clone, Debug, PartialEq)]
+pub enum Values {
+    /// Written out in the sweep file.
+    List(Vec<Value>),
+    /// `linspace = [start, stop, num]`.
+    Linspace { start: f64, stop: f64, num: usize },
+    /// `logspace = [start, stop, num]` (start, stop > 0).
+    Logspace { start: f64, stop: f64, num: usize },
+}
+
+impl Values {
+    pub fn len(&self) -> usize {
+        match self {
+            Values::List(v) => v.len(),
+            Values::Linspace { num, .. } | Values::Logspace { num, .. } => *num,
+        }
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Value `i` (< `len()`).
+    pub fn get(&self, i: usize) -> Value {
+        match self {
+            Values::List(v) => v[i].clone(),
+            Values::Linspace { start, stop, num } => {
+                Value::Num(linspace_at(*start, *stop, *num, i))
+            }
+            Values::Logspace { start, stop, num } => {
+                Value::Num(logspace_at(*start, *stop, *num, i))
+            }
+        }
+    }
+
+    /// At most `max` (≥ 2) of the values, both ends included, evenly spaced
+    /// in index: what validation looks at. A range's values lie between its
+    /// ends, and every scene key's allowed set is an interval, so the ends
+    /// decide; the rest is a cheap second look. Every scene is validated
+    /// again when it runs (an invalid one gets status `invalid`).
+    pub fn sample(&self, max: usize) -> Vec<Value> {
+        let n = self.len();
+        if n <= max {
+            return (0..n).map(|i| self.get(i)).collect();
+        }
+        (0..max)
+            .map(|j| self.get(((j as u128 * (n - 1) as u128) / (max - 1) as u128) as usize))
+            .collect()
+    }
+}
+
+impl Serialize for Values {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        use serde::ser::SerializeMap;
+        match self {
+            Values::List(v) => v.serialize(s),
+            Values::Linspace { start, stop, num } | Values::Logspace { start, stop, num } => {
+                let key = if matches!(self, Values::Linspace { .. }) {
+                    "linspace"
+                } else {
+                    "logspace"
+                };
+                let mut m = s.serialize_map(Some(1))?;
+                m.serialize_entry(key, &(start, stop, num))?;
+                m.end()
+            }
+        }
+    }
+}
+
+/// Value `i` of `num` evenly spaced ones, start + i·step; the last is `stop`.
+pub fn linspace_at(start: f64, stop: f64, num: usize, i: usize) -> f64 {
     if num == 1 {
-        return vec![start];
+        return start;
+    }
+    if i + 1 == num {
+        return stop;
     }
     let step = (stop - start) / (num - 1) as f64;
-    (0..num)
-        .map(|i| {
-            if i + 1 == num {
-                stop
-            } else {
-                start + i as f64 * step
-            }
-        })
-        .collect()
+    start + i as f64 * step
+}
+
+/// Value `i` of `num` geometrically spaced ones (start, stop > 0); the last is `stop`.
+pub fn logspace_at(start: f64, stop: f64, num: usize, i: usize) -> f64 {
+    if num == 1 {
+        return start;
+    }
+    if i + 1 == num {
+        return stop;
+    }
+    let (a, b) = (start.ln(), stop.ln());
+    let step = (b - a) / (num - 1) as f64;
+    (a + i as f64 * step).exp()
+}
+
+/// Evenly spaced values, start + i·step.
+pub fn linspace(start: f64, stop: f64, num: usize) -> Vec<f64> {
+    (0..num).map(|i| linspace_at(start, stop, num, i)).collect()
 }
 
 /// Geometrically spaced values between `start` and `stop` (both > 0).
 pub fn logspace(start: f64, stop: f64, num: usize) -> Vec<f64> {
-    if num == 1 {
-        return vec![start];
-    }
-    let (a, b) = (start.ln(), stop.ln());
-    let step = (b - a) / (num - 1) as f64;
-    (0..num)
-        .map(|i| {
-            if i + 1 == num {
-                stop
-            } else {
-                (a + i as f64 * step).exp()
-            }
-        })
-        .collect()
+    (0..num).map(|i| logspace_at(start, stop, num, i)).collect()
 }
 
 /// Apply `param = value` to a scene as written. `base` is the validated base
@@ -298,6 +401,16 @@ mod tests {
         assert!(Param::parse("velocity").is_err());
         assert!(Param::parse("balls[1]").is_err());
         assert!(Param::parse("mass[x]").is_err());
+        let p = |s: &str| Param::parse(s).unwrap();
+        assert!(p("mass[2]").overlaps(&p("density")));
+        assert!(p("mass").overlaps(&p("mass[1]")));
+        assert!(!p("mass[1]").overlaps(&p("mass[2]")));
+        assert!(!p("velocity[0]").overlaps(&p("velocity[1]")));
+        assert!(p("velocity[0]").overlaps(&p("launch.height")));
+        assert!(p("launch.balls").overlaps(&p("velocity[3]")));
+        assert!(!p("launch.balls").overlaps(&p("launch.height")));
+        assert!(p("dt").overlaps(&p("tolerance")));
+        assert!(!p("gap").overlaps(&p("mass")));
         assert!(Param::parse("mas")
             .unwrap_err()
             .contains("did you mean `mass`"));

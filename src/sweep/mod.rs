@@ -10,13 +10,17 @@ use std::path::Path;
 use serde::{Deserialize, Serialize};
 use toml::Spanned;
 
+use crate::engine::{Overrides, Solver};
 use crate::error::{InputError, Source};
 use crate::scene::spec::RawScene;
 use crate::scene::{Scene, SceneSpec};
-pub use axis::{Param, Value};
+pub use axis::{Param, Value, Values};
 
 /// Most scenes one sweep may have (refused before anything is allocated).
 pub const MAX_SCENES: u64 = 1_000_000_000;
+
+/// Values of one axis that sweep validation tries (all of a shorter axis).
+pub const VALIDATION_SAMPLES: usize = 1024;
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -47,13 +51,20 @@ pub struct Axis {
     /// The `param` text as written: the CSV column name.
     pub name: String,
     pub param: Param,
-    pub values: Vec<Value>,
+    pub values: Values,
+    /// Line of its `[[axis]]` table in the sweep file.
+    #[serde(skip)]
+    pub line: Option<usize>,
 }
 
 #[derive(Clone, Debug, Serialize)]
 pub struct Sweep {
     #[serde(skip)]
     pub origin: String,
+    /// Files this sweep was read from (the sweep file, a scene file it
+    /// names): an output must never be one of them.
+    #[serde(skip)]
+    pub inputs: Vec<std::path::PathBuf>,
     pub description: Option<String>,
     /// The base scene as written (after defaults are known: see `base`).
     pub scene: SceneSpec,
@@ -67,16 +78,19 @@ pub struct Sweep {
 
 impl Sweep {
     pub fn load(path: &Path) -> Result<Sweep, InputError> {
-        Self::parse(
+        let mut s = Self::parse(
             &Source::read(path)?,
             path.parent().unwrap_or(Path::new(".")),
-        )
+        )?;
+        s.inputs.insert(0, path.to_path_buf());
+        Ok(s)
     }
 
     /// Parse a sweep document; `dir` resolves a relative `scene = "file"`.
     pub fn parse(src: &Source, dir: &Path) -> Result<Sweep, InputError> {
         let raw: RawSweep = src.parse_toml()?;
         let origin = src.name.clone();
+        let mut inputs = Vec::new();
         let invalid =
             |line: Option<usize>, key: &str, value: String, allowed: String| InputError::Invalid {
                 origin: origin.clone(),
@@ -98,6 +112,7 @@ impl Sweep {
                 toml::Value::String(file) => {
                     let p = dir.join(file);
                     let scene_src = Source::read(&p)?;
+                    inputs.push(p);
                     SceneSpec::parse(&scene_src)?
                 }
                 toml::Value::Table(_) => {
@@ -166,7 +181,7 @@ impl Sweep {
                     _ => Err(bad()),
                 }
             };
-            let values: Vec<Value> = if let Some(v) = &a.values {
+            let values = if let Some(v) = &a.values {
                 if v.is_empty() {
                     return Err(invalid(
                         line,
@@ -183,29 +198,28 @@ impl Sweep {
                         format!("at most {}", axis::MAX_AXIS_VALUES),
                     ));
                 }
-                v.iter()
-                    .map(|x| match x {
-                        toml::Value::Float(f) => Ok(Value::Num(*f)),
-                        toml::Value::Integer(i) => Ok(Value::Num(*i as f64)),
-                        toml::Value::String(s) => Ok(Value::Text(s.clone())),
-                        other => Err(invalid(
-                            line,
-                            "values",
-                            other.to_string(),
-                            "numbers, or strings for `glue`".into(),
-                        )),
-                    })
-                    .collect::<Result<_, _>>()?
+                Values::List(
+                    v.iter()
+                        .map(|x| match x {
+                            toml::Value::Float(f) => Ok(Value::Num(*f)),
+                            toml::Value::Integer(i) => Ok(Value::Num(*i as f64)),
+                            toml::Value::String(s) => Ok(Value::Text(s.clone())),
+                            other => Err(invalid(
+                                line,
+                                "values",
+                                other.to_string(),
+                                "numbers, or strings for `glue`".into(),
+                            )),
+                        })
+                        .collect::<Result<_, _>>()?,
+                )
             } else if let Some(r) = &a.linspace {
-                let (s, e, n) = range("linspace", r)?;
-                axis::linspace(s, e, n)
-                    .into_iter()
-                    .map(Value::Num)
-                    .collect()
+                let (start, stop, num) = range("linspace", r)?;
+                Values::Linspace { start, stop, num }
             } else {
                 let r = a.logspace.as_deref().unwrap_or_default();
-                let (s, e, n) = range("logspace", r)?;
-                if s <= 0.0 || e <= 0.0 {
+                let (start, stop, num) = range("logspace", r)?;
+                if start <= 0.0 || stop <= 0.0 {
                     return Err(invalid(
                         line,
                         "logspace",
@@ -213,17 +227,46 @@ impl Sweep {
                         "start and stop must be > 0 (they are values, not exponents)".into(),
                     ));
                 }
-                axis::logspace(s, e, n)
-                    .into_iter()
-                    .map(Value::Num)
-                    .collect()
+                Values::Logspace { start, stop, num }
             };
+            if param.kind == axis::Kind::Integer {
+                // An integer param run as something else under its own label
+                // would mislabel every row: only whole numbers.
+                for i in 0..values.len() {
+                    if let Value::Num(x) = values.get(i) {
+                        if x.fract() != 0.0 || !x.is_finite() {
+                            return Err(invalid(
+                                line,
+                                &name,
+                                format!("{x} (value {i} of the axis)"),
+                                "whole numbers only: this parameter is an integer".into(),
+                            ));
+                        }
+                    }
+                }
+            }
+            if let Some((l0, a0)) = axes
+                .iter()
+                .find(|(_, b): &&(Option<usize>, Axis)| b.param.overlaps(&param))
+            {
+                return Err(invalid(
+                    line,
+                    "axis.param",
+                    format!("{name:?}"),
+                    format!(
+                        "sets what the axis {:?}{} already sets: each scene quantity may have one axis",
+                        a0.name,
+                        l0.map_or(String::new(), |l| format!(" (line {l})"))
+                    ),
+                ));
+            }
             axes.push((
                 line,
                 Axis {
                     name,
                     param,
                     values,
+                    line,
                 },
             ));
         }
@@ -243,17 +286,10 @@ impl Sweep {
                 })?;
         }
         let balls_axis = axes.iter().find(|(_, a)| a.param.name == "balls");
+        let num = |v: &Value| if let Value::Num(x) = v { *x } else { 0.0 };
         let width = match balls_axis {
-            Some((_, a)) => a
-                .values
-                .iter()
-                .map(|v| {
-                    if let Value::Num(x) = v {
-                        *x as usize
-                    } else {
-                        0
-                    }
-                })
+            Some((_, a)) => (0..a.values.len())
+                .map(|i| num(&a.values.get(i)) as usize)
                 .max()
                 .unwrap_or(base.n)
                 .max(base.n),
@@ -261,9 +297,14 @@ impl Sweep {
         };
 
         // Every axis value must make a valid scene on its own: typos and
-        // out-of-range values fail now, before any work.
-        for (line, a) in &axes {
-            for v in &a.values {
+        // out-of-range values fail now, before any work. Long ranges are
+        // checked at their ends and VALIDATION_SAMPLES evenly spaced values.
+        let samples: Vec<Vec<Value>> = axes
+            .iter()
+            .map(|(_, a)| a.values.sample(VALIDATION_SAMPLES))
+            .collect();
+        for (k, (line, a)) in axes.iter().enumerate() {
+            for v in &samples[k] {
                 let n = if balls_axis.is_some() { width } else { base.n };
                 if let (Some(i), Some(lim)) = (a.param.index, a.param.index_limit(n)) {
                     if i >= lim {
@@ -281,14 +322,17 @@ impl Sweep {
                 // with two balls launched): it is refused only when no single
                 // value of any other axis makes it valid.
                 let valid_with_another = |spec: &SceneSpec| {
-                    axes.iter().any(|(_, b)| {
-                        !std::ptr::eq(b, a)
-                            && b.values.iter().any(|w| {
-                                let mut s2 = spec.clone();
-                                axis::apply(&mut s2, &base, &b.param, w);
-                                s2.validate().is_ok()
-                            })
-                    })
+                    axes.iter()
+                        .zip(&samples)
+                        .enumerate()
+                        .any(|(j, ((_, b), ws))| {
+                            j != k
+                                && ws.iter().any(|w| {
+                                    let mut s2 = spec.clone();
+                                    axis::apply(&mut s2, &base, &b.param, w);
+                                    s2.validate().is_ok()
+                                })
+                        })
                 };
                 if let Err(e) = spec.validate() {
                     if valid_with_another(&spec) {
@@ -305,6 +349,7 @@ impl Sweep {
         }
         Ok(Sweep {
             origin,
+            inputs,
             description: raw.description,
             scene: scene_spec,
             base,
@@ -312,6 +357,35 @@ impl Sweep {
             total,
             width,
         })
+    }
+
+    /// Flags against this sweep's file: an axis that varies what a flag sets
+    /// is an error naming both (the CSV would show axis values never used),
+    /// and so is a flag that disagrees with the base scene's `[solver]`.
+    pub fn check_overrides(&self, o: &Overrides) -> Result<(), InputError> {
+        if let Some(t) = o.tolerance {
+            if let Some(a) = self
+                .axes
+                .iter()
+                .find(|a| matches!(a.param.name.as_str(), "tolerance" | "dt"))
+            {
+                return Err(InputError::Flag {
+                    flag: "--tolerance".into(),
+                    value: format!("{t:e}"),
+                    allowed: format!(
+                        "{}{}: the axis `{}` varies the step, and the flag would replace every value it labels: remove the flag or the axis",
+                        self.origin,
+                        a.line.map_or(String::new(), |l| format!(":{l}")),
+                        a.name
+                    ),
+                });
+            }
+        }
+        let scene_origin = match self.inputs.get(1) {
+            Some(p) => p.display().to_string(),
+            None => self.origin.clone(),
+        };
+        Solver::check_flags_against(&self.base, o, &scene_origin)
     }
 
     /// The per-ball columns of this sweep's table: displacements when its
@@ -346,7 +420,7 @@ impl Sweep {
         }
         let mut spec = self.scene.clone();
         for (a, i) in self.axes.iter().zip(self.indices(id)) {
-            axis::apply(&mut spec, &self.base, &a.param, &a.values[i]);
+            axis::apply(&mut spec, &self.base, &a.param, &a.values.get(i));
         }
         spec.validate()
     }
@@ -356,7 +430,7 @@ impl Sweep {
         self.axes
             .iter()
             .zip(self.indices(id))
-            .map(|(a, i)| a.values[i].csv())
+            .map(|(a, i)| a.values.get(i).csv())
             .collect()
     }
 

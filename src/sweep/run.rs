@@ -12,11 +12,15 @@ use super::Sweep;
 use crate::backend::{run_with_estimate, Backend, Job};
 use crate::engine::{Chain, Outcome, Overrides, Solver, Status};
 use crate::error::InputError;
+use crate::output::lock::OutputLock;
 use crate::output::partial::{Opened, PartialCsv};
 use crate::output::{row, sidecar};
 
 /// Scenes per batch: rows reach the disk after every batch.
 pub const BATCH: u64 = 2048;
+
+/// Seconds between saves of the wall time so far (for a resumed run's sidecar).
+const WALL_SAVE_S: f64 = 2.0;
 
 pub struct Options {
     pub out: PathBuf,
@@ -112,6 +116,8 @@ impl Sweep {
 }
 
 pub fn run(sweep: &Sweep, opts: &Options, backend: &dyn Backend) -> Result<Summary> {
+    // One writer per output, for the whole run, before anything is touched.
+    let _lock = OutputLock::acquire(&opts.out)?;
     let (lo, hi) = sweep.shard_range(opts.shard, &opts.overrides);
     // Everything a resumed run must share with the first, in one string.
     let fingerprint = serde_json::to_string(&serde_json::json!({
@@ -137,6 +143,7 @@ pub fn run(sweep: &Sweep, opts: &Options, backend: &dyn Backend) -> Result<Summa
         Opened::Writing(w) => w,
     };
     let start_id = lo + out.rows_done;
+    let (ok_before, wall_before) = (out.ok_done, out.wall_before);
     let bar = if std::io::stderr().is_terminal() {
         let b = indicatif::ProgressBar::new(hi - lo);
         b.set_style(
@@ -159,6 +166,7 @@ pub fn run(sweep: &Sweep, opts: &Options, backend: &dyn Backend) -> Result<Summa
         let writer = sc.spawn(move || -> Result<(u64, u64, PartialCsv)> {
             let mut out = out;
             let (mut ok, mut done) = (0u64, 0u64);
+            let mut saved = Instant::now();
             for (first, outcomes) in rx {
                 let mut bytes = Vec::with_capacity(256 * outcomes.len());
                 {
@@ -172,6 +180,10 @@ pub fn run(sweep: &Sweep, opts: &Options, backend: &dyn Backend) -> Result<Summa
                 out.append(&bytes)?;
                 done += outcomes.len() as u64;
                 bar.set_position(first + outcomes.len() as u64 - lo);
+                if saved.elapsed().as_secs_f64() >= WALL_SAVE_S {
+                    out.save_wall(wall_before + t0.elapsed().as_secs_f64())?;
+                    saved = Instant::now();
+                }
             }
             Ok((ok, done, out))
         });
@@ -209,40 +221,39 @@ pub fn run(sweep: &Sweep, opts: &Options, backend: &dyn Backend) -> Result<Summa
     })?;
     bar.finish_and_clear();
     let wall_s = t0.elapsed().as_secs_f64();
-    let path = out.path.clone();
-    out.finish()?;
-    sidecar::write(
-        &path,
-        &sidecar::Sidecar {
-            tool: "cradle",
-            version: env!("CARGO_PKG_VERSION"),
-            git_revision: sidecar::GIT_REVISION,
-            command: opts.command.clone(),
-            sweep_file: &sweep.origin,
-            sweep,
-            backend: backend.name(),
-            adapter: &backend.adapter(),
-            solver: serde_json::json!({
-                "flags": {
-                    "method": opts.overrides.method.map(|m| m.name()),
-                    "precision": opts.overrides.precision.map(|p| p.name()),
-                    "tolerance": opts.overrides.tolerance,
-                },
-                "base_scene": match sweep.job(lo.min(sweep.total.saturating_sub(1)), &opts.overrides)? {
-                    Job::Run { solver, .. } => serde_json::to_value(solver)?,
-                    Job::Invalid { .. } => serde_json::Value::Null,
-                },
-            }),
-            ids: [lo, hi],
-            total_scenes: sweep.total,
-            shard: opts.shard.map(|(k, n)| [k, n]),
-            scenes_ok: ok,
-            scenes_not_ok: done - ok,
-            wall_s,
-            scenes_per_s: done as f64 / wall_s.max(1e-9),
-            resumed_from_row: start_id - lo,
-        },
-    )?;
+    let (all_ok, all_done, all_wall) = (ok_before + ok, start_id - lo + done, wall_before + wall_s);
+    let text = sidecar::text(&sidecar::Sidecar {
+        tool: "cradle",
+        version: env!("CARGO_PKG_VERSION"),
+        git_revision: sidecar::GIT_REVISION,
+        command: opts.command.clone(),
+        sweep_file: &sweep.origin,
+        sweep,
+        backend: backend.name(),
+        adapter: &backend.adapter(),
+        solver: serde_json::json!({
+            "flags": {
+                "method": opts.overrides.method.map(|m| m.name()),
+                "precision": opts.overrides.precision.map(|p| p.name()),
+                "tolerance": opts.overrides.tolerance,
+            },
+            "base_scene": match sweep.job(lo.min(sweep.total.saturating_sub(1)), &opts.overrides)? {
+                Job::Run { solver, .. } => serde_json::to_value(solver)?,
+                Job::Invalid { .. } => serde_json::Value::Null,
+            },
+        }),
+        ids: [lo, hi],
+        total_scenes: sweep.total,
+        shard: opts.shard.map(|(k, n)| [k, n]),
+        scenes_ok: all_ok,
+        scenes_not_ok: all_done - all_ok,
+        wall_s: all_wall,
+        scenes_per_s: all_done as f64 / all_wall.max(1e-9),
+        resumed_from_row: start_id - lo,
+        wall_s_this_run: wall_s,
+        fingerprint: &fingerprint,
+    })?;
+    out.finish((&sidecar::path(&opts.out), text.as_bytes()))?;
     Ok(Summary {
         scenes: done,
         ok,

@@ -1,0 +1,693 @@
+//! Fault injection: what a sweep does when the disk fills, when it is killed,
+//! when two runs write one output, when an output path is hostile, when
+//! resume and merge meet parts that do not belong together, and when a
+//! request is absurd. Every case asserts that nothing already written is lost
+//! and that whatever is claimed complete is correct (README, "Guarantees").
+
+use std::fs;
+use std::path::{Path, PathBuf};
+use std::process::{Command as Std, Output};
+use std::time::{Duration, Instant};
+
+use assert_cmd::Command;
+
+fn cradle() -> Command {
+    Command::cargo_bin("cradle").unwrap()
+}
+
+/// A sweep of `n_mass` × `n_gap` five-ball scenes in `dir` (scene in a file).
+fn write_sweep(dir: &Path, n_mass: usize, n_gap: usize) -> PathBuf {
+    fs::write(
+        dir.join("scene.toml"),
+        "balls = 5\nvelocity = [1.0, 0, 0, 0, 0]\n",
+    )
+    .unwrap();
+    let p = dir.join("sweep.toml");
+    fs::write(
+        &p,
+        format!("scene = \"scene.toml\"\n[[axis]]\nparam = \"mass[2]\"\nlogspace = [0.01, 0.5, {n_mass}]\n[[axis]]\nparam = \"gap\"\nlinspace = [0.0, 2e-5, {n_gap}]\n"),
+    )
+    .unwrap();
+    p
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+fn run(args: &[&str]) -> Output {
+    cradle().args(args).output().unwrap()
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+/// Expect exit 2 (bad input) with `needle` in the message.
+fn refused(args: &[&str], needle: &str) -> String {
+    let o = run(args);
+    let e = stderr(&o);
+    assert_eq!(o.status.code(), Some(2), "{args:?}: {e}");
+    assert!(e.contains(needle), "{args:?}: {e:?} lacks {needle:?}");
+    e
+}
+
+fn ok(args: &[&str]) {
+    let o = run(args);
+    assert!(o.status.success(), "{args:?}: {}", stderr(&o));
+}
+
+/// A small deterministic generator for the "random" points of a test.
+fn points(seed: u64, n: usize, lo: u64, hi: u64) -> Vec<u64> {
+    let mut x = seed;
+    (0..n)
+        .map(|_| {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            lo + x % (hi - lo)
+        })
+        .collect()
+}
+
+#[test]
+fn hostile_output_paths_are_refused_before_any_work_and_nothing_is_replaced() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let sw = write_sweep(d, 3, 3);
+    let sweep_bytes = fs::read(&sw).unwrap();
+    let scene = d.join("scene.toml");
+    let scene_bytes = fs::read(&scene).unwrap();
+    // The sweep file and the scene file it names.
+    refused(&["sweep", s(&sw), "--out", s(&sw)], "is an input");
+    refused(&["sweep", s(&sw), "--out", s(&scene)], "is an input");
+    // A name whose companion (`.json`) would be an input.
+    let sweep_as_out = d.join("sweep");
+    fs::rename(&sw, d.join("sweep.json")).unwrap();
+    let sw2 = d.join("sweep.json");
+    refused(
+        &["sweep", s(&sw2), "--out", s(&sweep_as_out)],
+        "is an input",
+    );
+    fs::rename(&sw2, &sw).unwrap();
+    // A directory, found before the sweep runs.
+    fs::create_dir(d.join("adir")).unwrap();
+    refused(
+        &["sweep", s(&sw), "--out", s(&d.join("adir"))],
+        "is a directory",
+    );
+    refused(
+        &["sweep", s(&sw), "--out", s(&d.join("no/such/dir/o.csv"))],
+        "does not exist",
+    );
+    // A FIFO: refused, and still a FIFO afterwards.
+    let fifo = d.join("fifo.csv");
+    if Std::new("mkfifo")
+        .arg(&fifo)
+        .status()
+        .is_ok_and(|s| s.success())
+    {
+        refused(&["sweep", s(&sw), "--out", s(&fifo)], "FIFO");
+        use std::os::unix::fs::FileTypeExt;
+        assert!(fs::symlink_metadata(&fifo).unwrap().file_type().is_fifo());
+    }
+    // A device node (/dev/null itself is only ever checked, never written to
+    // by a test): refused by the same rule.
+    refused(&["sweep", s(&sw), "--out", "/dev/null"], "device node");
+    let null = d.join("null");
+    if Std::new("mknod")
+        .args([s(&null), "c", "1", "3"])
+        .status()
+        .is_ok_and(|s| s.success())
+    {
+        refused(&["sweep", s(&sw), "--out", s(&null)], "device node");
+        use std::os::unix::fs::FileTypeExt;
+        assert!(fs::symlink_metadata(&null)
+            .unwrap()
+            .file_type()
+            .is_char_device());
+    }
+    // A symlink to the sweep file: refused; a symlink to a new name: written
+    // through, the link kept.
+    let link_in = d.join("link_in.csv");
+    std::os::unix::fs::symlink(&sw, &link_in).unwrap();
+    refused(&["sweep", s(&sw), "--out", s(&link_in)], "is an input");
+    let link = d.join("link.csv");
+    std::os::unix::fs::symlink("target.csv", &link).unwrap();
+    ok(&["sweep", s(&sw), "--out", s(&link), "--backend", "cpu"]);
+    assert!(fs::symlink_metadata(&link)
+        .unwrap()
+        .file_type()
+        .is_symlink());
+    let target = fs::read_to_string(d.join("target.csv")).unwrap();
+    assert_eq!(target.lines().count(), 10, "{target}");
+    assert!(d.join("target.csv.json").exists());
+    // Inputs untouched by all of it.
+    assert_eq!(fs::read(&sw).unwrap(), sweep_bytes);
+    assert_eq!(fs::read(&scene).unwrap(), scene_bytes);
+    // The same rule guards merge, trace and plot outputs.
+    refused(&["run", s(&scene), "--trace", s(&scene)], "is an input");
+    refused(
+        &[
+            "merge",
+            s(&d.join("target.csv")),
+            "--out",
+            s(&d.join("target.csv")),
+        ],
+        "is an input",
+    );
+    refused(
+        &[
+            "plot",
+            s(&d.join("target.csv")),
+            "--x",
+            "gap",
+            "--y",
+            "mass[2]",
+            "--z",
+            "ejected",
+            "--out",
+            s(&d.join("adir")),
+        ],
+        "is a directory",
+    );
+    assert_eq!(fs::read(&scene).unwrap(), scene_bytes);
+}
+
+#[test]
+fn a_second_writer_is_refused_while_the_first_finishes_intact() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let sw = write_sweep(d, 40, 1000); // 40,000 scenes: seconds on one thread
+    let (out, reference) = (d.join("o.csv"), d.join("ref.csv"));
+    ok(&["sweep", s(&sw), "--out", s(&reference), "--backend", "cpu"]);
+    let mut first = Std::new(assert_cmd::cargo::cargo_bin("cradle"))
+        .args([
+            "sweep",
+            s(&sw),
+            "--out",
+            s(&out),
+            "--backend",
+            "cpu",
+            "--threads",
+            "1",
+        ])
+        .spawn()
+        .unwrap();
+    let partial = d.join("o.csv.partial");
+    let t0 = Instant::now();
+    while fs::metadata(&partial).map_or(0, |m| m.len()) == 0
+        && t0.elapsed() < Duration::from_secs(60)
+    {
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    let pid = format!("pid {}", first.id());
+    for extra in [&[][..], &["--resume"][..], &["--shard", "1/2"][..]] {
+        let mut args = vec!["sweep", s(&sw), "--out", s(&out), "--backend", "cpu"];
+        args.extend_from_slice(extra);
+        let e = refused(&args, "being written by another cradle");
+        assert!(e.contains(&pid), "{e}");
+    }
+    // merge into the same output is refused too
+    refused(&["merge", s(&reference), "--out", s(&out)], &pid);
+    assert!(first.wait().unwrap().success());
+    assert_eq!(fs::read(&out).unwrap(), fs::read(&reference).unwrap());
+    assert!(!d.join("o.csv.lock").exists());
+}
+
+#[test]
+fn disk_full_at_random_points_loses_nothing_and_resume_completes_the_same_bytes() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let sw = write_sweep(d, 10, 1000); // 10,000 scenes: 5 batches of rows
+    let reference = d.join("ref.csv");
+    ok(&["sweep", s(&sw), "--out", s(&reference), "--backend", "cpu"]);
+    let want = fs::read(&reference).unwrap();
+    for (i, k) in points(7, 3, 1, 6).into_iter().enumerate() {
+        let out = d.join(format!("o{i}.csv"));
+        let o = cradle()
+            .args(["sweep", s(&sw), "--out", s(&out), "--backend", "cpu"])
+            .env("CRADLE_FAILPOINT", format!("append:{k}"))
+            .output()
+            .unwrap();
+        let e = stderr(&o);
+        assert_eq!(o.status.code(), Some(1), "{e}");
+        let name = format!("o{i}.csv.partial");
+        assert!(
+            e.contains("No space left on device") && e.contains(&name),
+            "{e}"
+        );
+        assert!(!out.exists(), "a failed run must not look complete");
+        // What reached the file is a prefix of the right answer.
+        let part = fs::read(d.join(format!("o{i}.csv.partial"))).unwrap();
+        assert!(want.starts_with(&part) && part.len() < want.len());
+        ok(&[
+            "sweep",
+            s(&sw),
+            "--out",
+            s(&out),
+            "--backend",
+            "cpu",
+            "--resume",
+        ]);
+        assert_eq!(fs::read(&out).unwrap(), want, "failpoint append:{k}");
+    }
+    // The sidecar cannot be written: no CSV is published, no torn sidecar.
+    let out = d.join("side.csv");
+    let o = cradle()
+        .args(["sweep", s(&sw), "--out", s(&out), "--backend", "cpu"])
+        .env("CRADLE_FAILPOINT", "sidecar:1")
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(!out.exists() && !d.join("side.csv.json").exists());
+    ok(&[
+        "sweep",
+        s(&sw),
+        "--out",
+        s(&out),
+        "--backend",
+        "cpu",
+        "--resume",
+    ]);
+    assert_eq!(fs::read(&out).unwrap(), want);
+    let meta: serde_json::Value =
+        serde_json::from_slice(&fs::read(d.join("side.csv.json")).unwrap()).unwrap();
+    assert_eq!(
+        meta["scenes_ok"].as_u64().unwrap() + meta["scenes_not_ok"].as_u64().unwrap(),
+        10_000
+    );
+}
+
+#[test]
+fn kills_at_random_points_then_resume_give_the_same_bytes_and_a_whole_sidecar() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let sw = write_sweep(d, 40, 200);
+    let reference = d.join("ref.csv");
+    ok(&["sweep", s(&sw), "--out", s(&reference), "--backend", "cpu"]);
+    let want = fs::read(&reference).unwrap();
+    let out = d.join("o.csv");
+    let partial = d.join("o.csv.partial");
+    let mut kills = 0;
+    // Kill -9 after a random number of bytes, three times, resuming each time.
+    for at in points(11, 3, 1_000, 600_000) {
+        let mut child = Std::new(assert_cmd::cargo::cargo_bin("cradle"))
+            .args([
+                "sweep",
+                s(&sw),
+                "--out",
+                s(&out),
+                "--backend",
+                "cpu",
+                "--threads",
+                "1",
+                "--resume",
+            ])
+            .spawn()
+            .unwrap();
+        let t0 = Instant::now();
+        while fs::metadata(&partial).map_or(0, |m| m.len()) < at
+            && t0.elapsed() < Duration::from_secs(60)
+            && child.try_wait().unwrap().is_none()
+        {
+            std::thread::sleep(Duration::from_millis(2));
+        }
+        if child.try_wait().unwrap().is_none() {
+            child.kill().unwrap();
+            kills += 1;
+        }
+        child.wait().unwrap();
+        if out.exists() {
+            break;
+        }
+        let part = fs::read(&partial).unwrap();
+        assert!(want.starts_with(&part[..part.iter().rposition(|&b| b == b'\n').unwrap() + 1]));
+    }
+    assert!(kills > 0);
+    ok(&[
+        "sweep",
+        s(&sw),
+        "--out",
+        s(&out),
+        "--backend",
+        "cpu",
+        "--resume",
+    ]);
+    assert_eq!(fs::read(&out).unwrap(), want);
+    let meta: serde_json::Value =
+        serde_json::from_slice(&fs::read(d.join("o.csv.json")).unwrap()).unwrap();
+    let rows = meta["scenes_ok"].as_u64().unwrap() + meta["scenes_not_ok"].as_u64().unwrap();
+    assert_eq!(
+        rows, 8000,
+        "the sidecar counts the whole file, not the last run"
+    );
+    let ref_meta: serde_json::Value =
+        serde_json::from_slice(&fs::read(d.join("ref.csv.json")).unwrap()).unwrap();
+    assert_eq!(meta["scenes_ok"], ref_meta["scenes_ok"]);
+    assert!(meta["wall_s"].as_f64().unwrap() >= meta["wall_s_this_run"].as_f64().unwrap());
+}
+
+#[test]
+fn resume_and_merge_refuse_parts_that_do_not_belong_together() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let sw = write_sweep(d, 3, 4);
+    let p = |n: &str| d.join(n);
+    // A complete output of another sweep is never taken as done by --resume.
+    ok(&["sweep", s(&sw), "--out", s(&p("a.csv")), "--backend", "cpu"]);
+    let before = fs::read(p("a.csv")).unwrap();
+    refused(
+        &[
+            "sweep",
+            s(&sw),
+            "--out",
+            s(&p("a.csv")),
+            "--backend",
+            "cpu",
+            "--resume",
+            "--tolerance",
+            "1e-8",
+        ],
+        "different sweep",
+    );
+    let other = d.join("other.toml");
+    fs::write(
+        &other,
+        fs::read_to_string(&sw)
+            .unwrap()
+            .replace("0.5, 3]", "0.6, 3]"),
+    )
+    .unwrap();
+    refused(
+        &["sweep", s(&other), "--out", s(&p("a.csv")), "--resume"],
+        "different sweep",
+    );
+    assert_eq!(fs::read(p("a.csv")).unwrap(), before);
+    // The same sweep: already complete.
+    let o = run(&[
+        "sweep",
+        s(&sw),
+        "--out",
+        s(&p("a.csv")),
+        "--backend",
+        "cpu",
+        "--resume",
+    ]);
+    assert!(o.status.success() && stderr(&o).contains("already complete"));
+    // Without its sidecar nothing says what made it: refused.
+    fs::copy(p("a.csv"), p("b.csv")).unwrap();
+    refused(
+        &["sweep", s(&sw), "--out", s(&p("b.csv")), "--resume"],
+        "sidecar",
+    );
+
+    // Shards made with different solver settings.
+    ok(&[
+        "sweep",
+        s(&sw),
+        "--out",
+        s(&p("s1.csv")),
+        "--backend",
+        "cpu",
+        "--shard",
+        "1/2",
+    ]);
+    ok(&[
+        "sweep",
+        s(&sw),
+        "--out",
+        s(&p("s2.csv")),
+        "--backend",
+        "cpu",
+        "--shard",
+        "2/2",
+    ]);
+    ok(&[
+        "sweep",
+        s(&sw),
+        "--out",
+        s(&p("t2.csv")),
+        "--backend",
+        "cpu",
+        "--shard",
+        "2/2",
+        "--tolerance",
+        "1e-8",
+    ]);
+    refused(
+        &[
+            "merge",
+            s(&p("s1.csv")),
+            s(&p("t2.csv")),
+            "--out",
+            s(&p("m.csv")),
+        ],
+        "different sweep or solver",
+    );
+    // Incomplete set, repeated part.
+    refused(
+        &["merge", s(&p("s1.csv")), "--out", s(&p("m.csv"))],
+        "missing",
+    );
+    refused(
+        &[
+            "merge",
+            s(&p("s1.csv")),
+            s(&p("s1.csv")),
+            s(&p("s2.csv")),
+            "--out",
+            s(&p("m.csv")),
+        ],
+        "more than once",
+    );
+    // A part without its sidecar, and one cut short after it completed.
+    fs::copy(p("s2.csv"), p("n2.csv")).unwrap();
+    refused(
+        &[
+            "merge",
+            s(&p("s1.csv")),
+            s(&p("n2.csv")),
+            "--out",
+            s(&p("m.csv")),
+        ],
+        "sidecar",
+    );
+    let text = fs::read_to_string(p("s2.csv")).unwrap();
+    let cut = &text[..text.trim_end().rfind('\n').unwrap() + 1];
+    fs::write(p("c2.csv"), cut).unwrap();
+    fs::copy(p("s2.csv.json"), p("c2.csv.json")).unwrap();
+    refused(
+        &[
+            "merge",
+            s(&p("s1.csv")),
+            s(&p("c2.csv")),
+            "--out",
+            s(&p("m.csv")),
+        ],
+        "cut short",
+    );
+    assert!(!p("m.csv").exists() && !p("m.csv.partial").exists());
+    // The right parts merge to the unsharded bytes, and --resume of the
+    // unsharded sweep recognises the merged file as complete.
+    ok(&[
+        "merge",
+        s(&p("s2.csv")),
+        s(&p("s1.csv")),
+        "--out",
+        s(&p("m.csv")),
+    ]);
+    assert_eq!(fs::read(p("m.csv")).unwrap(), before);
+    let o = run(&[
+        "sweep",
+        s(&sw),
+        "--out",
+        s(&p("m.csv")),
+        "--backend",
+        "cpu",
+        "--resume",
+    ]);
+    assert!(
+        o.status.success() && stderr(&o).contains("already complete"),
+        "{}",
+        stderr(&o)
+    );
+}
+
+#[test]
+fn rows_are_never_labelled_with_values_they_were_not_computed_with() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let out = d.join("o.csv");
+    let sweep = |name: &str, text: &str| {
+        let p = d.join(name);
+        fs::write(&p, text).unwrap();
+        p
+    };
+    let base = "[scene]\nballs = 3\nvelocity = [1.0, 0, 0]\n";
+    // A flag against an axis of the same setting: both named.
+    let tol = sweep(
+        "tol.toml",
+        &format!("{base}[[axis]]\nparam = \"tolerance\"\nvalues = [1e-6, 1e-8]\n"),
+    );
+    let e = refused(
+        &["sweep", s(&tol), "--out", s(&out), "--tolerance", "1e-7"],
+        "--tolerance",
+    );
+    assert!(
+        e.contains("tol.toml:4") && e.contains("axis `tolerance`"),
+        "{e}"
+    );
+    let dt = sweep(
+        "dt.toml",
+        &format!("{base}[[axis]]\nparam = \"dt\"\nvalues = [1e-7]\n"),
+    );
+    refused(
+        &["sweep", s(&dt), "--out", s(&out), "--tolerance", "1e-7"],
+        "axis `dt`",
+    );
+    // A flag against the file's [solver]: both named; the same value is fine.
+    let solver = sweep("solver.toml", "[scene]\nballs = 3\nvelocity = [1.0, 0, 0]\n[scene.solver]\nmethod = \"yoshida6\"\n[[axis]]\nparam = \"gap\"\nvalues = [0.0]\n");
+    refused(
+        &["sweep", s(&solver), "--out", s(&out), "--method", "verlet"],
+        "[solver] method",
+    );
+    ok(&[
+        "sweep",
+        s(&solver),
+        "--out",
+        s(&out),
+        "--method",
+        "yoshida6",
+        "--backend",
+        "cpu",
+    ]);
+    // Two axes of one quantity.
+    for (a, b) in [
+        ("mass[1]", "mass"),
+        ("mass[1]", "density[1]"),
+        ("velocity[0]", "launch.height"),
+        ("gap", "gap[0]"),
+    ] {
+        let two = sweep("two.toml", &format!("{base}[[axis]]\nparam = \"{a}\"\nvalues = [1.0]\n[[axis]]\nparam = \"{b}\"\nvalues = [0.5]\n"));
+        refused(&["sweep", s(&two), "--out", s(&out)], "already sets");
+    }
+    // Integer params take integers only.
+    for axis in ["values = [3, 4.5]", "linspace = [3, 4, 3]"] {
+        let int = sweep(
+            "int.toml",
+            &format!("{base}[[axis]]\nparam = \"balls\"\n{axis}\n"),
+        );
+        refused(&["sweep", s(&int), "--out", s(&out)], "whole numbers only");
+    }
+    let lb = sweep("lb.toml", "[scene]\nballs = 5\n[scene.launch]\nballs = 1\nvelocity = 1.0\n[[axis]]\nparam = \"launch.balls\"\nvalues = [1.5]\n");
+    refused(&["sweep", s(&lb), "--out", s(&out)], "whole numbers only");
+}
+
+#[test]
+fn absurd_requests_are_refused_early_with_what_to_do() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let sw = write_sweep(d, 2, 2);
+    let out = d.join("o.csv");
+    refused(
+        &["sweep", s(&sw), "--out", s(&out), "--threads", "100000"],
+        "per core",
+    );
+    refused(
+        &["sweep", s(&sw), "--out", s(&out), "--threads", "0"],
+        "1 ..=",
+    );
+    refused(
+        &["sweep", s(&sw), "--out", s(&out), "--tolerance", "-1"],
+        "must be > 0",
+    );
+    refused(
+        &["sweep", s(&sw), "--out", s(&out), "--tolerance", "1e-14"],
+        "round-off floor",
+    );
+    refused(
+        &[
+            "sweep",
+            s(&sw),
+            "--out",
+            s(&out),
+            "--tolerance",
+            "1e-6",
+            "--precision",
+            "f32",
+        ],
+        "round-off floor",
+    );
+    assert!(!out.exists() && !d.join("o.csv.partial").exists());
+    // A trace of gigabytes is refused before the run, with a step that fits.
+    let trace = d.join("t.csv");
+    refused(
+        &[
+            "run",
+            "cradle-1",
+            "--trace",
+            s(&trace),
+            "--trace-dt",
+            "1e-15",
+        ],
+        "--trace-dt ≥",
+    );
+    refused(
+        &["run", "cradle-1", "--trace", s(&trace), "--trace-dt", "-1"],
+        "a time > 0",
+    );
+    assert!(!trace.exists());
+    // Long axes are computed on demand: a 10^7-value axis costs nothing
+    // until its scenes run (here the last 100 of them, as one shard).
+    let long = d.join("long.toml");
+    fs::write(&long, "[scene]\nballs = 3\nvelocity = [1.0, 0, 0]\n[[axis]]\nparam = \"gap\"\nlinspace = [0, 1e-5, 10000000]\n").unwrap();
+    let t0 = Instant::now();
+    ok(&[
+        "sweep",
+        s(&long),
+        "--out",
+        s(&out),
+        "--backend",
+        "cpu",
+        "--shard",
+        "100000/100000",
+    ]);
+    let text = fs::read_to_string(&out).unwrap();
+    assert_eq!(text.lines().count(), 101);
+    assert!(
+        text.lines().last().unwrap().starts_with("9999999,1e-5,"),
+        "{}",
+        text.lines().last().unwrap()
+    );
+    let meta = fs::read(d.join("o.csv.json")).unwrap();
+    assert!(
+        meta.len() < 100_000,
+        "the sidecar lists a range, not its values"
+    );
+    eprintln!(
+        "10^7-value axis, one shard: {:.2} s",
+        t0.elapsed().as_secs_f64()
+    );
+    // Too many scenes: refused from the axis lengths alone.
+    fs::write(&long, "[scene]\nballs = 3\nvelocity = [1.0, 0, 0]\n[[axis]]\nparam = \"gap\"\nlinspace = [0, 1e-5, 10000000]\n[[axis]]\nparam = \"mass[1]\"\nlinspace = [0.1, 1, 10000000]\n").unwrap();
+    refused(
+        &["sweep", s(&long), "--out", s(&out)],
+        "≤ 1000000000 scenes",
+    );
+}
+
+#[test]
+fn no_desktop_session_no_spurious_error_lines() {
+    let dir = tempfile::tempdir().unwrap();
+    let sw = write_sweep(dir.path(), 2, 2);
+    let out = dir.path().join("o.csv");
+    let o = cradle()
+        .args(["sweep", s(&sw), "--out", s(&out)])
+        .env_remove("XDG_RUNTIME_DIR")
+        .env_remove("WGPU_BACKEND")
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(!stderr(&o).contains("XDG_RUNTIME_DIR"), "{}", stderr(&o));
+}
