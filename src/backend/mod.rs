@@ -23,6 +23,11 @@ pub trait Backend: Sync {
     fn adapter(&self) -> String;
     /// Outcomes of `jobs`, in the same order.
     fn run(&self, jobs: &[Job]) -> anyhow::Result<Vec<Outcome>>;
+    /// How many `run` calls the sweep pipeline may make at once: the CPU
+    /// shares its rayon pool among any number; the GPU takes one.
+    fn max_concurrent_runs(&self) -> usize {
+        usize::MAX
+    }
 }
 
 /// Run `jobs`; with `estimate`, also their coarse twins (every step twice as

@@ -35,6 +35,8 @@ pub struct Sidecar<'a, S: Serialize> {
     pub resumed_from_row: u64,
     /// Wall time of this run alone (s).
     pub wall_s_this_run: f64,
+    /// Where this run's time went: thread-seconds per pipeline stage.
+    pub stages_s: serde_json::Value,
     /// What a `--resume` must agree with: sweep, shard, solver flags, version.
     pub fingerprint: &'a str,
 }

@@ -3,6 +3,7 @@
 //! produced one id at a time, never materialised as a whole.
 
 pub mod axis;
+pub mod pipeline;
 pub mod run;
 
 use std::path::Path;
@@ -427,11 +428,27 @@ impl Sweep {
 
     /// The axis columns of scene `id`, as the CSV writes them.
     pub fn axis_fields(&self, id: u64) -> Vec<String> {
-        self.axes
-            .iter()
-            .zip(self.indices(id))
-            .map(|(a, i)| a.values.get(i).csv())
-            .collect()
+        let mut v = Vec::with_capacity(self.axes.len());
+        self.emit_axis_fields(id, &mut String::new(), &mut |s| v.push(s.to_string()));
+        v
+    }
+
+    /// The axis columns of scene `id` to `out`, with `scratch` for number
+    /// text (no allocation per row for numeric axes).
+    pub fn emit_axis_fields(&self, id: u64, scratch: &mut String, out: &mut dyn FnMut(&str)) {
+        let mut stride: u64 = self.axes.iter().map(|a| a.values.len() as u64).product();
+        for a in &self.axes {
+            let n = a.values.len() as u64;
+            stride /= n;
+            let i = ((id / stride) % n) as usize;
+            match a.values.get(i) {
+                Value::Num(x) => {
+                    crate::output::row::num_into(x, scratch);
+                    out(scratch)
+                }
+                Value::Text(t) => out(&t),
+            }
+        }
     }
 
     pub fn axis_names(&self) -> Vec<String> {

@@ -1,5 +1,6 @@
-//! Running a sweep: ids in batches → jobs (in parallel) → backend → rows,
-//! streamed to the output in id order with progress on stderr.
+//! Running a sweep: the output opened (locked, resumed), the pipeline
+//! (`pipeline.rs`: ids → jobs → backend → rows in id order) run with
+//! progress on stderr, then the sidecar and the atomic publication.
 
 use std::io::IsTerminal;
 use std::path::PathBuf;
@@ -8,19 +9,15 @@ use std::time::Instant;
 use anyhow::Result;
 use rayon::prelude::*;
 
-use super::Sweep;
-use crate::backend::{run_with_estimate, Backend, Job};
-use crate::engine::{Chain, Outcome, Overrides, Solver, Status};
+use super::{pipeline, Sweep};
+use crate::backend::{Backend, Job};
+use crate::engine::{Chain, Overrides, Solver};
 use crate::error::InputError;
 use crate::output::lock::OutputLock;
 use crate::output::partial::{Opened, PartialCsv};
 use crate::output::{row, sidecar};
 
-/// Scenes per batch: rows reach the disk after every batch.
-pub const BATCH: u64 = 2048;
-
-/// Seconds between saves of the wall time so far (for a resumed run's sidecar).
-const WALL_SAVE_S: f64 = 2.0;
+pub use super::pipeline::BATCH;
 
 pub struct Options {
     pub out: PathBuf,
@@ -158,67 +155,15 @@ pub fn run(sweep: &Sweep, opts: &Options, backend: &dyn Backend) -> Result<Summa
         indicatif::ProgressBar::hidden()
     };
     let t0 = Instant::now();
-    // The writer thread formats and appends rows while the next batch runs,
-    // so a GPU never waits for CSV writing.
-    let (ok, done, out) = std::thread::scope(|sc| -> Result<(u64, u64, PartialCsv)> {
-        let (tx, rx) = std::sync::mpsc::sync_channel::<(u64, Vec<Outcome>)>(2);
-        let bar = &bar;
-        let writer = sc.spawn(move || -> Result<(u64, u64, PartialCsv)> {
-            let mut out = out;
-            let (mut ok, mut done) = (0u64, 0u64);
-            let mut saved = Instant::now();
-            for (first, outcomes) in rx {
-                let mut bytes = Vec::with_capacity(256 * outcomes.len());
-                {
-                    let mut w = csv::Writer::from_writer(&mut bytes);
-                    for (i, o) in (first..).zip(&outcomes) {
-                        w.write_record(row::fields(i, &sweep.axis_fields(i), o, sweep.shape()))?;
-                        ok += (o.status == Status::Ok) as u64;
-                    }
-                    w.flush()?;
-                }
-                out.append(&bytes)?;
-                done += outcomes.len() as u64;
-                bar.set_position(first + outcomes.len() as u64 - lo);
-                if saved.elapsed().as_secs_f64() >= WALL_SAVE_S {
-                    out.save_wall(wall_before + t0.elapsed().as_secs_f64())?;
-                    saved = Instant::now();
-                }
-            }
-            Ok((ok, done, out))
-        });
-        let mut id = start_id;
-        let mut failed = None;
-        while id < hi {
-            let end = (id + BATCH).min(hi);
-            let batch = (id..end)
-                .into_par_iter()
-                .map(|i| sweep.job(i, &opts.overrides))
-                .collect::<Result<Vec<Job>, _>>()
-                .map_err(anyhow::Error::from)
-                .and_then(|jobs| run_with_estimate(backend, &jobs, opts.error_estimate));
-            match batch {
-                Ok(outcomes) => {
-                    if tx.send((id, outcomes)).is_err() {
-                        break; // the writer failed; its error is reported below
-                    }
-                }
-                Err(e) => {
-                    failed = Some(e);
-                    break;
-                }
-            }
-            id = end;
-        }
-        drop(tx);
-        let written = writer
-            .join()
-            .map_err(|_| anyhow::anyhow!("the CSV writer thread panicked"))??;
-        match failed {
-            Some(e) => Err(e),
-            None => Ok(written),
-        }
-    })?;
+    let (ok, done, out, stages) = pipeline::stream(
+        sweep,
+        opts,
+        backend,
+        (start_id, hi),
+        out,
+        &|rows_end| bar.set_position(rows_end - lo),
+        &|out| out.save_wall(wall_before + t0.elapsed().as_secs_f64()),
+    )?;
     bar.finish_and_clear();
     let wall_s = t0.elapsed().as_secs_f64();
     let (all_ok, all_done, all_wall) = (ok_before + ok, start_id - lo + done, wall_before + wall_s);
@@ -251,6 +196,7 @@ pub fn run(sweep: &Sweep, opts: &Options, backend: &dyn Backend) -> Result<Summa
         scenes_per_s: all_done as f64 / all_wall.max(1e-9),
         resumed_from_row: start_id - lo,
         wall_s_this_run: wall_s,
+        stages_s: stages.json(wall_s),
         fingerprint: &fingerprint,
     })?;
     out.finish((&sidecar::path(&opts.out), text.as_bytes()))?;

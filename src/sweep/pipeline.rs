@@ -1,0 +1,275 @@
+//! The sweep pipeline: ids → jobs → backend → CSV bytes, with no idle stage.
+//!
+//! The id range is cut into batches. One *lane* per worker thread takes the
+//! next batch, builds its jobs, runs them on the backend and formats their
+//! rows into bytes, all on that thread (rayon's nested parallelism lets an
+//! idle thread steal chunks of another lane's batch, so the last batches of a
+//! sweep are shared out too). A writer thread appends the batches' bytes in
+//! id order. A slow batch (a straggler scene) delays only the writing of its
+//! own rows: the other lanes go on with later batches, up to [`AHEAD`]
+//! batches past the oldest unwritten one, which bounds the memory held by
+//! finished-but-unwritten rows. Lanes that reach that bound help the others
+//! (rayon `yield_now`) instead of sleeping.
+//!
+//! Rows are formatted the same way whatever the lane, batch or thread count,
+//! so the file is byte-identical across them (tested).
+
+use std::collections::BTreeMap;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::{mpsc, Condvar, Mutex};
+use std::time::{Duration, Instant};
+
+use anyhow::Result;
+
+use super::run::Options;
+use super::Sweep;
+use crate::backend::{run_with_estimate, Backend, Job};
+use crate::engine::Status;
+use crate::output::partial::PartialCsv;
+use crate::output::row;
+
+/// Scenes per batch: the unit of work of a lane and of a backend call.
+pub const BATCH: u64 = 2048;
+
+/// Batches a lane may run ahead of the oldest unwritten one. With ~330 bytes
+/// a row (5 balls) that is ≤ 70 MB of formatted rows waiting for a straggler.
+pub const AHEAD: u64 = 96;
+
+/// Seconds between saves of the wall time so far (for a resumed run's sidecar).
+const WALL_SAVE_S: f64 = 2.0;
+
+/// Thread-seconds spent in each stage (summed over lanes), and the writer's.
+#[derive(Debug, Default, Clone, Copy)]
+pub struct Stages {
+    pub jobs: f64,
+    pub integration: f64,
+    pub formatting: f64,
+    pub writing: f64,
+    /// Thread-seconds lanes spent waiting for a straggler's rows to be written.
+    pub waiting: f64,
+    pub lanes: usize,
+}
+
+impl Stages {
+    fn add(&mut self, o: &Stages) {
+        self.jobs += o.jobs;
+        self.integration += o.integration;
+        self.formatting += o.formatting;
+        self.waiting += o.waiting;
+    }
+
+    pub fn json(&self, wall_s: f64) -> serde_json::Value {
+        serde_json::json!({
+            "lanes": self.lanes,
+            "jobs": self.jobs,
+            "integration": self.integration,
+            "formatting": self.formatting,
+            "writing": self.writing,
+            "waiting_for_stragglers": self.waiting,
+            "busy_fraction": (self.jobs + self.integration + self.formatting)
+                / (wall_s * self.lanes as f64).max(1e-9),
+        })
+    }
+}
+
+/// One finished batch: its first id, its rows as CSV bytes, how many are ok.
+struct Done {
+    first: u64,
+    n: u64,
+    ok: u64,
+    bytes: Vec<u8>,
+}
+
+/// At most `n` holders at a time (backend calls of a backend that limits them).
+struct Gate {
+    free: Mutex<usize>,
+    cv: Condvar,
+}
+
+impl Gate {
+    fn with<T>(&self, f: impl FnOnce() -> T) -> T {
+        let mut free = self.free.lock().unwrap_or_else(|e| e.into_inner());
+        while *free == 0 {
+            free = self.cv.wait(free).unwrap_or_else(|e| e.into_inner());
+        }
+        *free -= 1;
+        drop(free);
+        let r = f();
+        *self.free.lock().unwrap_or_else(|e| e.into_inner()) += 1;
+        self.cv.notify_one();
+        r
+    }
+}
+
+/// Jobs, outcomes and CSV bytes of the scenes `first .. end`.
+fn batch(
+    sweep: &Sweep,
+    opts: &Options,
+    backend: &dyn Backend,
+    gate: &Gate,
+    (first, end): (u64, u64),
+    st: &mut Stages,
+) -> Result<Done> {
+    let t = Instant::now();
+    let jobs = (first..end)
+        .map(|i| sweep.job(i, &opts.overrides))
+        .collect::<Result<Vec<Job>, _>>()?;
+    let t1 = Instant::now();
+    let outcomes = gate.with(|| run_with_estimate(backend, &jobs, opts.error_estimate))?;
+    drop(jobs);
+    let t2 = Instant::now();
+    let mut bytes = Vec::with_capacity(256 * outcomes.len());
+    let mut ok = 0;
+    let mut scratch = String::with_capacity(32);
+    let mut axis_scratch = String::with_capacity(32);
+    let shape = sweep.shape();
+    for (i, o) in (first..).zip(&outcomes) {
+        let axes = |f: &mut dyn FnMut(&str)| sweep.emit_axis_fields(i, &mut axis_scratch, f);
+        let mut sep = false;
+        row::emit(i, axes, o, shape, &mut scratch, &mut |field| {
+            if sep {
+                bytes.push(b',');
+            }
+            sep = true;
+            row::push_csv_field(&mut bytes, field);
+        });
+        bytes.push(b'\n');
+        ok += (o.status == Status::Ok) as u64;
+    }
+    let t3 = Instant::now();
+    st.jobs += (t1 - t).as_secs_f64();
+    st.integration += (t2 - t1).as_secs_f64();
+    st.formatting += (t3 - t2).as_secs_f64();
+    Ok(Done {
+        first,
+        n: end - first,
+        ok,
+        bytes,
+    })
+}
+
+/// Run scenes `lo .. hi` and append their rows to `out` in id order. Returns
+/// (ok rows, rows, the output, stage times). `progress` gets the end id of
+/// the rows written so far; `save` is called every few seconds.
+pub fn stream(
+    sweep: &Sweep,
+    opts: &Options,
+    backend: &dyn Backend,
+    (lo, hi): (u64, u64),
+    out: PartialCsv,
+    progress: &(dyn Fn(u64) + Sync),
+    save: &(dyn Fn(&PartialCsv) -> Result<()> + Sync),
+) -> Result<(u64, u64, PartialCsv, Stages)> {
+    let n_batches = (hi - lo).div_ceil(BATCH);
+    let lanes = rayon::current_num_threads().clamp(1, n_batches.max(1) as usize);
+    let gate = Gate {
+        free: Mutex::new(backend.max_concurrent_runs().max(1)),
+        cv: Condvar::new(),
+    };
+    let next = AtomicU64::new(0);
+    // Batches written so far (the writer's position), and a stop signal.
+    let written = AtomicU64::new(0);
+    let abort = AtomicBool::new(false);
+    let totals = Mutex::new(Stages {
+        lanes,
+        ..Stages::default()
+    });
+    let (tx, rx) = mpsc::channel::<Result<Done>>();
+
+    std::thread::scope(|sc| -> Result<(u64, u64, PartialCsv, Stages)> {
+        let (written, abort) = (&written, &abort);
+        let writer = sc.spawn(move || -> Result<(u64, u64, PartialCsv, f64)> {
+            let mut out = out;
+            let (mut ok, mut done, mut writing) = (0u64, 0u64, 0.0);
+            let mut waiting: BTreeMap<u64, Done> = BTreeMap::new();
+            let mut saved = Instant::now();
+            let mut expect = lo;
+            let mut result = Ok(());
+            for msg in rx {
+                match msg {
+                    Ok(d) => {
+                        waiting.insert(d.first, d);
+                    }
+                    Err(e) => {
+                        // Keep every row before the failure, then stop.
+                        abort.store(true, Ordering::SeqCst);
+                        result = Err(e);
+                    }
+                }
+                while let Some(d) = waiting.remove(&expect) {
+                    let t = Instant::now();
+                    if let Err(e) = out.append(&d.bytes) {
+                        abort.store(true, Ordering::SeqCst);
+                        return Err(e);
+                    }
+                    writing += t.elapsed().as_secs_f64();
+                    ok += d.ok;
+                    done += d.n;
+                    expect += d.n;
+                    written.fetch_add(1, Ordering::SeqCst);
+                    progress(expect);
+                    if saved.elapsed().as_secs_f64() >= WALL_SAVE_S {
+                        save(&out)?;
+                        saved = Instant::now();
+                    }
+                }
+                if result.is_err() {
+                    break;
+                }
+            }
+            result.map(|_| (ok, done, out, writing))
+        });
+
+        {
+            let lane = || {
+                let mut st = Stages::default();
+                loop {
+                    if abort.load(Ordering::SeqCst) {
+                        break;
+                    }
+                    let b = next.fetch_add(1, Ordering::SeqCst);
+                    if b >= n_batches {
+                        break;
+                    }
+                    // Stay within AHEAD batches of the writer: help the others meanwhile.
+                    let t = Instant::now();
+                    while b >= written.load(Ordering::SeqCst) + AHEAD
+                        && !abort.load(Ordering::SeqCst)
+                    {
+                        if rayon::yield_now() != Some(rayon::Yield::Executed) {
+                            std::thread::sleep(Duration::from_micros(200));
+                        }
+                    }
+                    st.waiting += t.elapsed().as_secs_f64();
+                    let first = lo + b * BATCH;
+                    let r = batch(
+                        sweep,
+                        opts,
+                        backend,
+                        &gate,
+                        (first, (first + BATCH).min(hi)),
+                        &mut st,
+                    );
+                    let failed = r.is_err();
+                    if tx.send(r).is_err() || failed {
+                        abort.store(true, Ordering::SeqCst);
+                        break;
+                    }
+                }
+                totals.lock().unwrap_or_else(|e| e.into_inner()).add(&st);
+            };
+            rayon::scope(|rs| {
+                for _ in 0..lanes {
+                    rs.spawn(|_| lane());
+                }
+            });
+        }
+        drop(tx);
+        let (ok, done, out, writing) = writer
+            .join()
+            .map_err(|_| anyhow::anyhow!("the CSV writer thread panicked"))??;
+        let mut st = *totals.lock().unwrap_or_else(|e| e.into_inner());
+        st.writing = writing;
+        Ok((ok, done, out, st))
+    })
+}
