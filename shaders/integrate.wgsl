@@ -3,8 +3,11 @@
 // operations, so the GPU gives the CPU's answers. One invocation integrates one
 // scene. The contact law (hertz_force, contact_force) twins src/engine/contact.rs.
 //
-// `real` is f32 here; the f64 pipeline is built from this text with the alias
-// line replaced (src/backend/gpu.rs). δ^{3/2} is written δ·√δ, never pow:
+// This file is the body of the shader: src/backend/layout.rs generates its
+// prelude (the `real` alias for the precision, the header struct, buffer
+// offsets p_*/s_*, result words W_*, END_*/FLAG_* codes and the shared
+// constants) and backend::gpu::shader_source puts the two together.
+// δ^{3/2} is written δ·√δ, never pow:
 // f64 pow returns garbage on lavapipe without any error, and SPIR-V has no f64
 // sin or exp: pendulum_sin and decay are polynomials, the same on both sides.
 //
@@ -14,56 +17,9 @@
 // The state lives in out_real/out_u32 between dispatches and the host
 // dispatches again until no scene is running.
 
-alias real = f32;
-// Kahan-compensated velocity and overlap updates (Real::COMPENSATED): on for f32.
-const COMPENSATED = true;
-
-const MAX_BALLS: u32 = 64u;
 // false: a pipeline for elastic free lines only, without the pendulum, damping
 // and drag terms (engine::integrate's TERMS; set by the host per batch).
 override TERMS: bool = true;
-// Why a run stopped (engine::End).
-const END_SETTLED: u32 = 0u;
-const END_STEP_CAP: u32 = 1u;
-const END_TIME_CAP: u32 = 2u;
-const END_NON_FINITE: u32 = 3u;
-const END_DURATION: u32 = 4u;
-// Still integrating: resume at the next dispatch.
-const END_RUNNING: u32 = 255u;
-
-// |x| at or above this is treated as non-finite (engine::integrate::FINITE_LIMIT).
-const FINITE_LIMIT = 1e30;
-
-// Layout-compatible with backend::gpu::GpuHeader.
-struct Header {
-    // number of bodies
-    nb: u32,
-    // offset of this scene's parameters in `params`: h, v_floor, max_time,
-    // one (= 1.0), h_min, t_scale, h_free, g, inv_l, drag, a_e, h_stiff,
-    // weights[n_weights], kicks[n_weights + 1], inv_m[nb], k[nc], inv_r[nc],
-    // gap[nc], imp_t[nc], imp_d[nc], stiff_l[nc], stiff_r[nc]
-    input: u32,
-    // offset of its state (the results once it ends) in `out_real`: v[nb], d[nc],
-    // cv[nb], cd[nc], chi[nc], f[nc], t, t_first (−1: none), t_release (−1: none),
-    // max_overlap, max_ratio, x0, cx0, ct
-    output: u32,
-    max_steps: u32,
-    // number of Verlet substeps per step (their weights follow a_e in `params`)
-    n_weights: u32,
-    // grading exponent in quarters (graded_step); 0: steps are not graded
-    quarters: u32,
-    // steps per dispatch, so that one dispatch stays under ~60,000 loop iterations
-    budget: u32,
-    // FLAG_*: pendulum, damped contacts, air drag, isolated impacts in closed form
-    flags: u32,
-}
-
-const FLAG_PENDULUM: u32 = 1u;
-const FLAG_DAMPED: u32 = 2u;
-const FLAG_DRAG: u32 = 4u;
-const FLAG_EXACT: u32 = 8u;
-// engine::contact::FIFTH_ROOT_SCALINGS
-const FIFTH_ROOT_SCALINGS: u32 = 200u;
 
 @group(0) @binding(0) var<storage, read> headers: array<Header>;
 @group(0) @binding(1) var<storage, read> params: array<real>;
@@ -97,7 +53,7 @@ var<private> ct: array<real, 1>;
 // 1.0, read from the params buffer: a value the shader compiler cannot see,
 // so it cannot simplify the compensated sums in `add` away ((x+y)−x → y).
 var<private> one: real;
-// per-scene constants (engine::integrate::Consts)
+// per-scene constants (engine::integrate::Shape, and the per-lane constants of engine::integrate::Lanes)
 var<private> nb: u32;
 var<private> nc: u32;
 var<private> pend: bool;
@@ -198,7 +154,7 @@ fn kick(hh: real) {
     push(nb - 1u, hh * f[nb - 2u] * inv_m[nb - 1u], hh);
 }
 
-// engine::integrate::push — body b's share of a kick, gravity added after.
+// body b's share of a kick, gravity added after (the loop body of engine::integrate::Lanes::kick)
 fn push(b: u32, contact: real, hh: real) {
     var inc = contact;
     if (pend) {
@@ -443,71 +399,69 @@ fn exact_impact(c: u32) -> Impact {
 
 // engine::integrate::integrate
 fn integrate(i: u32) {
-    if (out_u32[3u * i] != END_RUNNING) {
+    if (out_u32[N_WORDS * i + W_END] != END_RUNNING) {
         return;
     }
     let hd = headers[i];
     nb = hd.nb;
     nc = nb - 1u;
     let p0 = hd.input;
-    let h = params[p0];
-    let v_floor = params[p0 + 1u];
-    let max_time = params[p0 + 2u];
-    one = params[p0 + 3u];
-    let h_min = params[p0 + 4u];
-    let t_scale = params[p0 + 5u];
-    let h_free = params[p0 + 6u];
-    g = params[p0 + 7u];
-    inv_l = params[p0 + 8u];
-    drag = params[p0 + 9u];
-    let a_e = params[p0 + 10u];
-    let h_stiff = params[p0 + 11u];
+    let nw = hd.n_weights;
+    let h = params[p0 + p_h(nb, nw)];
+    let v_floor = params[p0 + p_v_floor(nb, nw)];
+    let max_time = params[p0 + p_max_time(nb, nw)];
+    one = params[p0 + p_one(nb, nw)];
+    let h_min = params[p0 + p_h_min(nb, nw)];
+    let t_scale = params[p0 + p_t_scale(nb, nw)];
+    let h_free = params[p0 + p_h_free(nb, nw)];
+    g = params[p0 + p_g(nb, nw)];
+    inv_l = params[p0 + p_inv_l(nb, nw)];
+    drag = params[p0 + p_drag(nb, nw)];
+    let a_e = params[p0 + p_a_e(nb, nw)];
+    let h_stiff = params[p0 + p_h_stiff(nb, nw)];
     let exact = (hd.flags & FLAG_EXACT) != 0u;
     pend = TERMS && (hd.flags & FLAG_PENDULUM) != 0u;
     damped = TERMS && (hd.flags & FLAG_DAMPED) != 0u;
     dragged = TERMS && (hd.flags & FLAG_DRAG) != 0u;
-    let w0 = p0 + 12u; // substep weights
-    let k0 = w0 + hd.n_weights; // kick weights (engine::integrate::kick_weights)
-    let m0 = k0 + hd.n_weights + 1u; // inv_m
-    let q = m0 + nb;
+    let w0 = p0 + p_weights(nb, nw); // substep weights
+    let k0 = p0 + p_kicks(nb, nw); // kick weights (engine::integrate::kick_weights)
     let o = hd.output;
-    let s = o + 2u * nb + 4u * nc;
     for (var b = 0u; b < nb; b++) {
-        inv_m[b] = params[m0 + b];
-        v[b] = out_real[o + b];
-        cv[b] = out_real[o + nb + nc + b];
+        inv_m[b] = params[p0 + p_inv_m(nb, nw) + b];
+        v[b] = out_real[o + s_v(nb, nw) + b];
+        cv[b] = out_real[o + s_cv(nb, nw) + b];
     }
     f[nb - 1u] = real(0.0);
     for (var c = 0u; c < nc; c++) {
-        k[c] = params[q + c];
-        inv_r[c] = params[q + nc + c];
-        gap[c] = params[q + 2u * nc + c];
-        imp_t[c] = params[q + 3u * nc + c];
-        imp_d[c] = params[q + 4u * nc + c];
-        stiff_l[c] = params[q + 5u * nc + c];
-        stiff_r[c] = params[q + 6u * nc + c];
-        d[c] = out_real[o + nb + c];
-        cd[c] = out_real[o + 2u * nb + nc + c];
-        chi[c] = out_real[o + 2u * nb + 2u * nc + c];
+        k[c] = params[p0 + p_k(nb, nw) + c];
+        inv_r[c] = params[p0 + p_inv_r(nb, nw) + c];
+        gap[c] = params[p0 + p_gap(nb, nw) + c];
+        imp_t[c] = params[p0 + p_imp_t(nb, nw) + c];
+        imp_d[c] = params[p0 + p_imp_d(nb, nw) + c];
+        stiff_l[c] = params[p0 + p_stiff_l(nb, nw) + c];
+        stiff_r[c] = params[p0 + p_stiff_r(nb, nw) + c];
+        d[c] = out_real[o + s_d(nb, nw) + c];
+        cd[c] = out_real[o + s_cd(nb, nw) + c];
+        chi[c] = out_real[o + s_chi(nb, nw) + c];
     }
-    tt[0] = out_real[s];
-    var t_first = out_real[s + 1u];
-    var t_release = out_real[s + 2u];
-    var max_ov = out_real[s + 3u];
-    var max_ratio = out_real[s + 4u];
-    x0[0] = out_real[s + 5u];
-    cx0[0] = out_real[s + 6u];
-    ct[0] = out_real[s + 7u];
+    tt[0] = out_real[o + s_t(nb, nw)];
+    var t_first = out_real[o + s_t_first(nb, nw)];
+    var t_release = out_real[o + s_t_release(nb, nw)];
+    var max_ov = out_real[o + s_max_overlap(nb, nw)];
+    var max_ratio = out_real[o + s_max_ratio(nb, nw)];
+    x0[0] = out_real[o + s_x0(nb, nw)];
+    cx0[0] = out_real[o + s_cx0(nb, nw)];
+    ct[0] = out_real[o + s_ct(nb, nw)];
     var closed = forces();
     // Damped forces depend on the velocity of the drift they were computed in:
     // carry them over from the last dispatch, as the CPU carries them over.
     if (damped) {
         for (var c = 0u; c < nc; c++) {
-            f[c] = out_real[o + 2u * nb + 3u * nc + c];
+            f[c] = out_real[o + s_f(nb, nw) + c];
         }
     }
-    var steps = out_u32[3u * i + 1u];
-    var contacts = out_u32[3u * i + 2u];
+    var steps = out_u32[N_WORDS * i + W_STEPS];
+    var contacts = out_u32[N_WORDS * i + W_CONTACTS];
     var end = END_RUNNING;
     for (var it = 0u; it < hd.budget; it++) {
         if (!closed && !pend) {
@@ -668,26 +622,26 @@ fn integrate(i: u32) {
         }
     }
     for (var b = 0u; b < nb; b++) {
-        out_real[o + b] = v[b];
-        out_real[o + nb + nc + b] = cv[b];
+        out_real[o + s_v(nb, nw) + b] = v[b];
+        out_real[o + s_cv(nb, nw) + b] = cv[b];
     }
     for (var c = 0u; c < nc; c++) {
-        out_real[o + nb + c] = d[c];
-        out_real[o + 2u * nb + nc + c] = cd[c];
-        out_real[o + 2u * nb + 2u * nc + c] = chi[c];
-        out_real[o + 2u * nb + 3u * nc + c] = f[c];
+        out_real[o + s_d(nb, nw) + c] = d[c];
+        out_real[o + s_cd(nb, nw) + c] = cd[c];
+        out_real[o + s_chi(nb, nw) + c] = chi[c];
+        out_real[o + s_f(nb, nw) + c] = f[c];
     }
-    out_real[s] = tt[0];
-    out_real[s + 1u] = t_first;
-    out_real[s + 2u] = t_release;
-    out_real[s + 3u] = max_ov;
-    out_real[s + 4u] = max_ratio;
-    out_real[s + 5u] = x0[0];
-    out_real[s + 6u] = cx0[0];
-    out_real[s + 7u] = ct[0];
-    out_u32[3u * i] = end;
-    out_u32[3u * i + 1u] = steps;
-    out_u32[3u * i + 2u] = contacts;
+    out_real[o + s_t(nb, nw)] = tt[0];
+    out_real[o + s_t_first(nb, nw)] = t_first;
+    out_real[o + s_t_release(nb, nw)] = t_release;
+    out_real[o + s_max_overlap(nb, nw)] = max_ov;
+    out_real[o + s_max_ratio(nb, nw)] = max_ratio;
+    out_real[o + s_x0(nb, nw)] = x0[0];
+    out_real[o + s_cx0(nb, nw)] = cx0[0];
+    out_real[o + s_ct(nb, nw)] = ct[0];
+    out_u32[N_WORDS * i + W_END] = end;
+    out_u32[N_WORDS * i + W_STEPS] = steps;
+    out_u32[N_WORDS * i + W_CONTACTS] = contacts;
 }
 
 @compute @workgroup_size(64)

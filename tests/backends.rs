@@ -360,3 +360,174 @@ fn cpu_lanes_match_single_runs_bit_for_bit() {
         }
     }
 }
+
+/// The CPU–GPU boundary is defined once (backend::layout) and the shader's
+/// prelude is generated from it: the assembled shader, as naga reads it, must
+/// have the header, codes, flags and constants the Rust side uses, and its
+/// offset functions must compute the host's offsets. Independent of any
+/// numeric parity (it fails on a layout slip that no scene happens to show).
+#[test]
+fn shader_and_host_agree_on_the_boundary() {
+    use hertz_cradle::backend::layout::{self, GpuHeader, HEADER_FIELDS, PARAMS, STATE};
+    use std::mem::offset_of;
+    let rust_offsets = [
+        ("nb", offset_of!(GpuHeader, nb)),
+        ("input", offset_of!(GpuHeader, input)),
+        ("output", offset_of!(GpuHeader, output)),
+        ("max_steps", offset_of!(GpuHeader, max_steps)),
+        ("n_weights", offset_of!(GpuHeader, n_weights)),
+        ("quarters", offset_of!(GpuHeader, quarters)),
+        ("budget", offset_of!(GpuHeader, budget)),
+        ("flags", offset_of!(GpuHeader, flags)),
+    ];
+    assert_eq!(rust_offsets.len(), HEADER_FIELDS.len());
+    for p in [Precision::F32, Precision::F64] {
+        let src = shader_source(p);
+        let module = naga::front::wgsl::parse_str(&src).unwrap();
+        // struct Header: the same members at the same offsets, the same size.
+        let (members, span) = module
+            .types
+            .iter()
+            .find_map(|(_, t)| match (&t.name, &t.inner) {
+                (Some(n), naga::TypeInner::Struct { members, span }) if n == "Header" => {
+                    Some((members.clone(), *span))
+                }
+                _ => None,
+            })
+            .expect("struct Header in the shader");
+        assert_eq!(span as usize, std::mem::size_of::<GpuHeader>());
+        let got: Vec<(String, usize)> = members
+            .iter()
+            .map(|m| (m.name.clone().unwrap(), m.offset as usize))
+            .collect();
+        let want: Vec<(String, usize)> = rust_offsets
+            .iter()
+            .map(|(n, o)| (n.to_string(), *o))
+            .collect();
+        assert_eq!(got, want, "{}", p.name());
+        // Named u32 constants: the Rust values.
+        let constant = |name: &str| -> u32 {
+            let (_, c) = module
+                .constants
+                .iter()
+                .find(|(_, c)| c.name.as_deref() == Some(name))
+                .unwrap_or_else(|| panic!("no const {name} in the {} shader", p.name()));
+            match module.global_expressions[c.init] {
+                naga::Expression::Literal(naga::Literal::U32(v)) => v,
+                ref e => panic!("{name}: {e:?}"),
+            }
+        };
+        for (_, name, code) in layout::ENDS {
+            assert_eq!(constant(&format!("END_{name}")), *code);
+        }
+        assert_eq!(constant("END_RUNNING"), layout::END_RUNNING);
+        assert_eq!(constant("FLAG_PENDULUM"), layout::FLAG_PENDULUM);
+        assert_eq!(constant("FLAG_DAMPED"), layout::FLAG_DAMPED);
+        assert_eq!(constant("FLAG_DRAG"), layout::FLAG_DRAG);
+        assert_eq!(constant("FLAG_EXACT"), layout::FLAG_EXACT);
+        assert_eq!(constant("N_WORDS") as usize, layout::WORDS.len());
+        for (i, w) in layout::WORDS.iter().enumerate() {
+            assert_eq!(constant(&format!("W_{}", w.to_uppercase())) as usize, i);
+        }
+        assert_eq!(
+            constant("MAX_BALLS") as usize,
+            hertz_cradle::scene::MAX_BALLS
+        );
+        assert_eq!(
+            constant("FIFTH_ROOT_SCALINGS"),
+            hertz_cradle::engine::contact::FIFTH_ROOT_SCALINGS
+        );
+        // `real` is the precision asked for.
+        let real = module
+            .types
+            .iter()
+            .find_map(|(_, t)| (t.name.as_deref() == Some("real")).then_some(&t.inner));
+        let width = match p {
+            Precision::F32 => 4,
+            Precision::F64 => 8,
+        };
+        if let Some(naga::TypeInner::Scalar(s)) = real {
+            assert_eq!(s.width, width);
+        }
+        assert!(src.contains(&format!(
+            "alias real = {};",
+            if width == 4 { "f32" } else { "f64" }
+        )));
+        // Offset functions p_* and s_*: evaluate their text `Au + Bu * nw + Cu * nb - Du`.
+        for (prefix, fields) in [("p", PARAMS), ("s", STATE)] {
+            for (name, _) in fields {
+                let head = format!("fn {prefix}_{name}(nb: u32, nw: u32) -> u32 {{\n    return ");
+                let at = src
+                    .find(&head)
+                    .unwrap_or_else(|| panic!("no {prefix}_{name}"));
+                let expr = &src[at + head.len()..];
+                let expr = &expr[..expr.find(';').unwrap()];
+                for nb in [2i64, 5, 64] {
+                    for nw in [1i64, 4, 9] {
+                        let v: i64 = expr
+                            .replace(" - ", " + -")
+                            .split(" + ")
+                            .map(|term| {
+                                let (sign, t) = match term.strip_prefix('-') {
+                                    Some(t) => (-1, t),
+                                    None => (1, term),
+                                };
+                                let (c, var) = t.split_once(" * ").unwrap_or((t, ""));
+                                let c: i64 = c.trim_end_matches('u').parse().unwrap();
+                                sign * c
+                                    * match var {
+                                        "nw" => nw,
+                                        "nb" => nb,
+                                        _ => 1,
+                                    }
+                            })
+                            .sum();
+                        assert_eq!(
+                            v as usize,
+                            layout::offset(fields, name, nb as usize, nw as usize),
+                            "{prefix}_{name} = {expr} at nb {nb}, nw {nw}"
+                        );
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// Every Rust item the shader's comments cite (`engine::module::item`)
+/// exists: the twin's cross-references stay true.
+#[test]
+fn shader_cites_only_rust_items_that_exist() {
+    let body = hertz_cradle::backend::gpu::SHADER_BODY;
+    let src: String = ["src/engine", "src/backend", "src/scene"]
+        .iter()
+        .flat_map(|d| std::fs::read_dir(d).unwrap())
+        .map(|e| std::fs::read_to_string(e.unwrap().path()).unwrap_or_default())
+        .collect();
+    let (mut cited, mut missing) = (0, vec![]);
+    for (i, _) in body.match_indices("engine::") {
+        let path: String = body[i..]
+            .chars()
+            .take_while(|c| c.is_alphanumeric() || *c == '_' || *c == ':')
+            .collect();
+        let item = path.rsplit("::").next().unwrap();
+        if item.is_empty() || path.ends_with("::") {
+            continue;
+        }
+        let found = [
+            "fn ", "struct ", "const ", "enum ", "trait ", "mod ", "type ",
+        ]
+        .iter()
+        .any(|k| src.contains(&format!("{k}{item}")))
+            || std::path::Path::new(&format!("src/{}.rs", path.replace("::", "/"))).exists();
+        if !found {
+            missing.push(path);
+        }
+        cited += 1;
+    }
+    assert!(
+        missing.is_empty(),
+        "the shader cites items that do not exist: {missing:?}"
+    );
+    assert!(cited > 10, "{cited} citations found");
+}

@@ -6,66 +6,29 @@
 use std::borrow::Cow;
 
 use anyhow::{anyhow, bail, Context, Result};
-use bytemuck::{Pod, Zeroable};
+use bytemuck::Pod;
 use wgpu::util::DeviceExt;
 
+use super::layout::{self, GpuHeader, END_RUNNING, PARAMS, STATE, WORDS};
+use super::layout::{FLAG_DAMPED, FLAG_DRAG, FLAG_EXACT, FLAG_PENDULUM};
 use super::{Backend, Job};
 use crate::engine::integrate::{closing_speed_floor, kick_weights, Run};
 use crate::engine::real::Real;
-use crate::engine::{plan, simulate_chain, Chain, End, Model, Outcome, Silent, Solver, UNSTEPPED};
+use crate::engine::{plan, simulate_chain, Chain, Model, Outcome, Silent, Solver, UNSTEPPED};
 use crate::scene::Precision;
 
-/// The shader source, f32 flavour; the f64 flavour swaps the `real` alias.
-pub const SHADER: &str = include_str!("../../shaders/integrate.wgsl");
+/// The shader's body; its prelude comes from `layout::prelude`.
+pub const SHADER_BODY: &str = include_str!("../../shaders/integrate.wgsl");
 /// Threads per workgroup (`@workgroup_size` in the shader).
 const WORKGROUP: u32 = 64;
-/// `END_RUNNING` in the shader: the scene is still integrating.
-const END_RUNNING: u32 = 255;
 /// Dispatches submitted between two looks at which scenes are still running.
 const DISPATCHES_PER_ROUND: usize = 4;
 
-/// The shader text for one precision.
+/// The whole shader for one precision: the generated prelude (types,
+/// layout, codes, constants), then the body.
 pub fn shader_source(p: Precision) -> Cow<'static, str> {
-    match p {
-        Precision::F32 => Cow::Borrowed(SHADER),
-        Precision::F64 => Cow::Owned(
-            SHADER
-                .replacen("alias real = f32;", "alias real = f64;", 1)
-                .replacen(
-                    "const COMPENSATED = true;",
-                    &format!("const COMPENSATED = {};", f64::COMPENSATED),
-                    1,
-                ),
-        ),
-    }
+    Cow::Owned(layout::prelude(p) + "\n" + SHADER_BODY)
 }
-
-/// Per-scene header; layout-compatible with `struct Header` in the shader.
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Pod, Zeroable)]
-pub struct GpuHeader {
-    pub nb: u32,
-    pub input: u32,
-    pub output: u32,
-    pub max_steps: u32,
-    pub n_weights: u32,
-    /// Grading exponent in quarters; 0: not graded.
-    pub quarters: u32,
-    /// Steps one dispatch may run for this scene.
-    pub budget: u32,
-    /// `FLAG_*`: pendulum, damped contacts, air drag.
-    pub flags: u32,
-}
-const FLAG_PENDULUM: u32 = 1;
-const FLAG_DAMPED: u32 = 2;
-const FLAG_DRAG: u32 = 4;
-const FLAG_EXACT: u32 = 8;
-/// Words of `out_u32` per scene: end, steps, contacts.
-const WORDS: usize = 3;
-/// Scalars after the per-body and per-contact state: t, t_first, t_release,
-/// max_overlap, max_ratio, x0, cx0, ct.
-const SCALARS: usize = 8;
-const _: () = assert!(std::mem::size_of::<GpuHeader>() == 32);
 
 /// Loop iterations of one step of `ch` in `n_weights` substeps (the
 /// pendulum's sine is a 10-term loop per body, air drag's decay up to ~25),
@@ -277,9 +240,11 @@ impl Gpu {
         let max_scenes = (self.max_workgroups as usize) * WORKGROUP as usize;
         let real = std::mem::size_of::<R>() as u64;
         let bytes = |(ch, s): &(&Chain, &Solver)| {
-            let nb = ch.n_bodies() as u64;
-            let n_w = crate::engine::solver::weights(s.method).len() as u64;
-            ((11 + n_w + 4 * nb) * real).max((6 * nb + SCALARS as u64) * real)
+            let (nb, nw) = (
+                ch.n_bodies(),
+                crate::engine::solver::weights(s.method).len(),
+            );
+            (layout::len(PARAMS, nb, nw).max(layout::len(STATE, nb, nw)) as u64) * real
         };
         let mut out = Vec::with_capacity(jobs.len());
         let mut start = 0;
@@ -331,6 +296,15 @@ impl Gpu {
                 .filter(|(on, _)| *on)
                 .fold(0, |a, (_, f)| a | f),
             });
+            // In layout::PARAMS order; `at` checks each array starts where it says.
+            let (p0, nw) = (params.len(), sp.weights.len());
+            let at = |params: &Vec<R>, name: &str| {
+                assert_eq!(
+                    params.len() - p0,
+                    layout::offset(PARAMS, name, nb, nw),
+                    "{name}"
+                )
+            };
             params.push(R::of(sp.h));
             params.push(closing_speed_floor::<R>(ch.v_in(), sp.settle_rel));
             params.push(R::of(lim.max_time));
@@ -347,28 +321,45 @@ impl Gpu {
             params.push(R::of(ch.air_drag));
             params.push(R::of(ch.damping_a));
             params.push(R::of(sp.h_stiff));
+            at(&params, "weights");
             params.extend(sp.weights.iter().map(|&w| R::of(w)));
+            at(&params, "kicks");
             params.extend(kick_weights(sp.weights).iter().map(|&w| R::of(w)));
+            at(&params, "inv_m");
             params.extend(ch.mass.iter().map(|m| R::of(1.0 / m)));
+            at(&params, "k");
             params.extend(ch.k.iter().map(|&k| R::of(k)));
             params.extend(ch.r_min.iter().map(|r| R::of(1.0 / r)));
             params.extend(ch.gap.iter().map(|&g| R::of(g)));
             let imp: Vec<(f64, f64)> = (0..nb - 1).map(|c| ch.impact_coefficients(c)).collect();
+            at(&params, "imp_t");
             params.extend(imp.iter().map(|&(t, _)| R::of(t)));
             params.extend(imp.iter().map(|&(_, d)| R::of(d)));
             let stiff: Vec<(f64, f64)> = (0..nb - 1)
                 .map(|c| ch.stiffness_coefficients(c, sp.omega_ref))
                 .collect();
+            at(&params, "stiff_l");
             params.extend(stiff.iter().map(|&(l, _)| R::of(l)));
             params.extend(stiff.iter().map(|&(_, r)| R::of(r)));
+            assert_eq!(params.len() - p0, layout::len(PARAMS, nb, nw));
+            let s0 = state.len();
             state.extend(ch.v0.iter().map(|&v| R::of(v)));
             state.extend(ch.initial_overlap().iter().map(|&d| R::of(d)));
             // compensations cv, cd; χ and forces (every contact starts open)
             state.extend(std::iter::repeat_n(R::zero(), nb + 3 * (nb - 1)));
+            assert_eq!(state.len() - s0, layout::offset(STATE, "t", nb, nw));
             // t, t_first, t_release, max_ov, max_ratio, x0, cx0, ct
             state.extend([0.0, -1.0, -1.0, 0.0, 0.0, ch.x0[0], 0.0, 0.0].map(R::of));
+            assert_eq!(state.len() - s0, layout::len(STATE, nb, nw));
         }
-        let words0: Vec<u32> = jobs.iter().flat_map(|_| [END_RUNNING, 0, 0]).collect();
+        let words0: Vec<u32> = jobs
+            .iter()
+            .flat_map(|_| {
+                WORDS
+                    .iter()
+                    .map(|w| if *w == "end" { END_RUNNING } else { 0 })
+            })
+            .collect();
         let d = &self.device;
         let init = |label, contents: &[u8], usage| {
             d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
@@ -436,7 +427,7 @@ impl Gpu {
             enc.copy_buffer_to_buffer(&out_u, 0, &read_u, 0, size_u);
             self.queue.submit(Some(enc.finish()));
             let words: Vec<u32> = self.read_back(&read_u)?;
-            if !words.iter().step_by(WORDS).any(|&e| e == END_RUNNING) {
+            if !words.iter().step_by(WORDS.len()).any(|&e| e == END_RUNNING) {
                 break words;
             }
         };
@@ -452,35 +443,39 @@ impl Gpu {
             .zip(jobs)
             .enumerate()
             .map(|(i, (h, (ch, _)))| {
-                let (nb, o) = (h.nb as usize, h.output as usize);
-                let nc = nb - 1;
-                let s = 2 * nb + 4 * nc;
+                let (nb, o, nw) = (h.nb as usize, h.output as usize, h.n_weights as usize);
                 let f = |j: usize| reals[o + j].to64();
+                let at = |name: &str| f(layout::offset(STATE, name, nb, nw));
+                let region = |name: &str| {
+                    let s = layout::offset(STATE, name, nb, nw);
+                    let n = STATE
+                        .iter()
+                        .find(|x| x.0 == name)
+                        .map_or(0, |x| x.1.of(nb, nw));
+                    (s..s + n).map(f).collect::<Vec<f64>>()
+                };
                 let when = |x: f64| (x >= 0.0).then_some(x);
-                let overlap: Vec<f64> = (nb..nb + nc).map(f).collect();
+                let word = |name: &str| {
+                    words[WORDS.len() * i + WORDS.iter().position(|w| *w == name).expect("a word")]
+                };
+                let overlap = region("d");
                 Run {
-                    end: match words[WORDS * i] {
-                        0 => End::Settled,
-                        1 => End::StepCap,
-                        2 => End::TimeCap,
-                        4 => End::Duration,
-                        _ => End::NonFinite,
-                    },
-                    v: (0..nb).map(f).collect(),
+                    end: layout::end_of(word("end")),
+                    v: region("v"),
                     // displacements are tracked on pendulums only (as on the CPU)
                     x: if ch.is_pendulum() {
-                        ch.positions(f(s + 5), &overlap)
+                        ch.positions(at("x0"), &overlap)
                     } else {
                         vec![f64::NAN; nb]
                     },
                     overlap,
-                    steps: words[WORDS * i + 1] as u64,
-                    contacts: words[WORDS * i + 2] as u64,
-                    t: f(s),
-                    t_first_contact: when(f(s + 1)),
-                    t_last_release: when(f(s + 2)),
-                    max_overlap: f(s + 3),
-                    max_overlap_ratio: f(s + 4),
+                    steps: word("steps") as u64,
+                    contacts: word("contacts") as u64,
+                    t: at("t"),
+                    t_first_contact: when(at("t_first")),
+                    t_last_release: when(at("t_release")),
+                    max_overlap: at("max_overlap"),
+                    max_overlap_ratio: at("max_ratio"),
                 }
             })
             .collect())

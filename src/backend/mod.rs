@@ -3,6 +3,7 @@
 
 pub mod cpu;
 pub mod gpu;
+pub mod layout;
 
 use crate::engine::{Chain, Outcome, Solver, Status};
 
