@@ -8,18 +8,21 @@ Reference: suzuki4 at tolerance 1e-11, checked against yoshida6 at 1e-11 and
 against a Richardson-extrapolated pair of Verlet runs (the spreads are
 printed and written as rows `reference-check-*`).
 
-  python3 -m venv /tmp/peer && /tmp/peer/bin/pip install numpy numba matplotlib
+  python3 -m venv .venv && .venv/bin/pip install -r scripts/requirements.txt
   cargo build --release
   XDG_RUNTIME_DIR=/tmp WGPU_BACKEND=vulkan \\
-    /tmp/peer/bin/python scripts/work_precision.py --out results/work_precision.csv \\
+    .venv/bin/python scripts/work_precision.py --out results/work_precision.csv \\
     --plot results/work_precision.png --speedup results/work_precision_speedup.csv
+
+The peer is vendored in scripts/peers/numba_grid100.py (versions pinned in
+scripts/requirements.txt).
 """
 import argparse, csv, math, os, re, statistics, subprocess, sys, time
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 CRADLE = os.path.join(ROOT, "target", "release", "cradle")
 GRID = os.path.join(ROOT, "examples", "grid100.toml")
-PEER = os.path.join(ROOT, "..", "shared", "peers", "numba_grid100.py")
+PEER = os.path.join(ROOT, "scripts", "peers", "numba_grid100.py")
 
 
 def read(path):

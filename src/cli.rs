@@ -1,4 +1,4 @@
-//! Command-line interface of `cradle` (SPEC §4). Raw flags are parsed here and
+//! Command-line interface of `cradle` (docs/SPEC.md §4). Raw flags are parsed here and
 //! checked into typed values before any work starts.
 
 use std::path::PathBuf;

@@ -1,4 +1,4 @@
-//! Physics of the CPU engine against exact results (SPEC §6). Every assertion
+//! Physics of the CPU engine against exact results (docs/SPEC.md §6). Every assertion
 //! here fails if the contact law, the integrator or the bookkeeping is wrong.
 
 use hertz_cradle::engine::contact::{contact_time, hertz_stiffness, max_overlap};
@@ -94,7 +94,7 @@ fn two_ball_contact_time_and_overlap_match_hertz() {
     let m = s.mass[0];
     let k = hertz_stiffness(0.0125, 200e9, 0.3, 0.0125, 200e9, 0.3);
     let (tc, dmax) = (contact_time(m / 2.0, k, 1.0), max_overlap(m / 2.0, k, 1.0));
-    // SPEC §6 numbers at 1 m/s
+    // docs/SPEC.md §6 numbers at 1 m/s
     assert!((tc / 7.6687e-5 - 1.0).abs() < 1e-4, "{tc}");
     assert!((dmax / 2.6055e-5 - 1.0).abs() < 1e-4, "{dmax}");
     let o = solve(&s, Some(StepRule::Dt(tc / 20_000.0)), Precision::F64);
@@ -202,7 +202,7 @@ const ONE_INTO_FOUR: [f64; 5] = [-0.07109, -0.03027, -0.01446, 0.12704, 0.98878]
 #[test]
 fn one_ball_into_four_matches_reference_at_default_settings() {
     let o = run("balls = 5\nvelocity = [1.0, 0, 0, 0, 0]");
-    // SPEC values carry 5 decimals: compare to within their rounding + 1e-5.
+    // docs/SPEC.md values carry 5 decimals: compare to within their rounding + 1e-5.
     assert!(err(&o, &ONE_INTO_FOUR, 1.0) < 0.5e-5 + 1e-5, "{:?}", o.v);
     assert_eq!(o.ejected, 1);
     assert!(o.energy_error < 1e-6, "{}", o.energy_error);
@@ -620,7 +620,7 @@ fn error_estimate_tracks_the_actual_error_for_verlet() {
     }
 }
 
-/// Pendulums and damping (SPEC §2–§3).
+/// Pendulums and damping (docs/SPEC.md §2–§3).
 mod pendulum {
     use super::*;
     use hertz_cradle::output::trace::TraceWriter;
@@ -841,7 +841,7 @@ mod models {
             2.0 * m
         ));
         assert!(err(&o, &[-1.0 / 3.0, 2.0 / 3.0], 1.0) < 1e-15);
-        // The hertz engine agrees where the gaps are wide (SPEC §6).
+        // The hertz engine agrees where the gaps are wide (docs/SPEC.md §6).
         let text = "balls = 5\nglue = \"=---\"\ngap = 1e-4\nvelocity = [0.8, 0.8, 0, 0, 0]";
         let h = run_tight(text);
         assert!(err(&h, &w, 0.8) < 1e-9, "{:?}", h.v);

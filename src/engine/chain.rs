@@ -2,7 +2,7 @@
 //!
 //! Glue merges balls into one body (masses summed, one velocity): glue removes
 //! a degree of freedom, it is not a stiff spring. Contact c joins body c and
-//! body c+1; its stiffness comes from the two boundary balls (SPEC §2).
+//! body c+1; its stiffness comes from the two boundary balls (docs/SPEC.md §2).
 
 use super::contact::{contact_time, hertz_stiffness, hunt_crossley_a, impact_coefficients};
 use crate::error::InputError;
@@ -125,7 +125,7 @@ impl Chain {
         self.mass.len()
     }
 
-    /// Largest initial speed |v| (SPEC §5); for balls lifted on a pendulum,
+    /// Largest initial speed |v| (docs/SPEC.md §5); for balls lifted on a pendulum,
     /// their speed at the bottom of the swing, √(2gh).
     pub fn v_in(&self) -> f64 {
         let v = self.v0.iter().fold(0.0f64, |m, v| m.max(v.abs()));

@@ -1,7 +1,7 @@
 //! The contact law — the one place on the Rust side that says how two balls
 //! push on each other. Its WGSL twin is `hertz_force` in `shaders/integrate.wgsl`.
 //!
-//! Hertz (SPEC §2): overlap δ = x_i − x_{i+1} − g_i; force F = k·δ^{3/2} for δ > 0,
+//! Hertz (docs/SPEC.md §2): overlap δ = x_i − x_{i+1} − g_i; force F = k·δ^{3/2} for δ > 0,
 //! zero otherwise (no tension), with k = (4/3)·E*·√R*.
 //!
 //! Damping (`[damping] restitution = e`): the Hunt–Crossley law
@@ -140,7 +140,7 @@ pub fn hertz_energy(k: f64, d: f64) -> f64 {
 pub const CONTACT_TIME_CONST: f64 = 3.218_065_459_719_043;
 
 /// Duration of a two-body Hertz impact of reduced mass `mu` (kg) at approach
-/// speed `v` (m/s) (SPEC §6).
+/// speed `v` (m/s) (docs/SPEC.md §6).
 pub fn contact_time(mu: f64, k: f64, v: f64) -> f64 {
     CONTACT_TIME_CONST * (mu * mu / (k * k * v)).powf(0.2)
 }

@@ -1,4 +1,4 @@
-//! Outcomes of one scene (SPEC §4–§5): per-ball final velocities, `ejected`,
+//! Outcomes of one scene (docs/SPEC.md §4–§5): per-ball final velocities, `ejected`,
 //! diagnostics and a status that is never `ok` for garbage.
 
 use std::fmt;
@@ -58,7 +58,7 @@ pub struct Outcome {
     pub status: Status,
     /// Final velocity of each ball (m/s); glued balls repeat their body's.
     pub v: Vec<f64>,
-    /// Balls leaving at the far end (SPEC §5).
+    /// Balls leaving at the far end (docs/SPEC.md §5).
     pub ejected: usize,
     /// Relative energy error; for a dissipative scene only a gain counts.
     pub energy_error: f64,
@@ -178,7 +178,7 @@ impl Outcome {
     }
 }
 
-/// SPEC §5: the number of balls at the right end that leave faster than half
+/// docs/SPEC.md §5: the number of balls at the right end that leave faster than half
 /// the largest final velocity, with velocities non-decreasing toward the end.
 /// Velocities equal to within [`EJECT_SLACK`]·max count as non-decreasing: two
 /// balls leaving together at 1 and 1 − 1e-15 are two balls out, not one.

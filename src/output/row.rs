@@ -1,5 +1,5 @@
 //! One outcome row, the same for `cradle run --format csv` and every sweep row
-//! (SPEC §4): `id`, one column per axis, `status`, `v_0`..`v_{N−1}`, on a
+//! (docs/SPEC.md §4): `id`, one column per axis, `status`, `v_0`..`v_{N−1}`, on a
 //! pendulum the final displacements `x_0`..`x_{N−1}` (m, arc length),
 //! `ejected`, `energy_error`, `momentum_error` (empty on a pendulum, where
 //! gravity changes momentum), `max_overlap_m`, `steps`, then `contacts`

@@ -80,7 +80,7 @@ pub fn drawing<E: std::fmt::Debug>(e: E) -> anyhow::Error {
     anyhow::anyhow!("drawing failed: {e:?}")
 }
 
-/// Physical unit of a column, from its name (SPEC §4 keys and outcome columns).
+/// Physical unit of a column, from its name (docs/SPEC.md §4 keys and outcome columns).
 pub fn unit(col: &str) -> Option<&'static str> {
     let base = col.split('[').next().unwrap_or(col);
     let base = base.split('.').next_back().unwrap_or(base);

@@ -15,7 +15,7 @@ use serde::Serialize;
 
 use crate::error::{InputError, Source};
 
-/// Defaults of SPEC §2: steel balls of 25 mm diameter.
+/// Defaults of docs/SPEC.md §2: steel balls of 25 mm diameter.
 pub const DEFAULT_RADIUS: f64 = 0.0125;
 pub const DEFAULT_DENSITY: f64 = 7850.0;
 pub const DEFAULT_YOUNG: f64 = 200e9;
@@ -180,7 +180,7 @@ impl Scene {
         }
     }
 
-    /// Largest initial speed |v| (SPEC §5), the scale of every reported error.
+    /// Largest initial speed |v| (docs/SPEC.md §5), the scale of every reported error.
     pub fn v_in(&self) -> f64 {
         self.velocity.iter().fold(0.0, |m, v| m.max(v.abs()))
     }
@@ -279,7 +279,7 @@ fn any(_: f64) -> bool {
 }
 
 impl SceneSpec {
-    /// Check every key (SPEC §2, §4) and resolve defaults.
+    /// Check every key (docs/SPEC.md §2, §4) and resolve defaults.
     pub fn validate(&self) -> Result<Scene, InputError> {
         let c = Check { spec: self };
         let n = match self.balls {

@@ -1,4 +1,4 @@
-//! The scene file as written (SPEC §4): parsed from TOML with serde, not yet
+//! The scene file as written (docs/SPEC.md §4): parsed from TOML with serde, not yet
 //! checked. A sweep edits a [`SceneSpec`] (`mass[2] = …`) before it is
 //! validated into a [`super::Scene`].
 

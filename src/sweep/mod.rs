@@ -1,4 +1,4 @@
-//! Sweeps (SPEC §4): a base scene and `[[axis]]` tables; the cartesian
+//! Sweeps (docs/SPEC.md §4): a base scene and `[[axis]]` tables; the cartesian
 //! product, scene id = row-major index with the first axis slowest. Scenes are
 //! produced one id at a time, never materialised as a whole.
 
