@@ -231,23 +231,43 @@ pub enum Format {
     Csv,
 }
 
-/// Flags that override a scene's `[solver]` table.
+/// The closed sets of the solver flags, as clap values: their names are the
+/// ones the scene files use (`Method::name`, …), and a bad value gets clap's
+/// message with the possible values (exit 2).
+macro_rules! value_enum {
+    ($t:ty, $all:expr) => {
+        impl ValueEnum for $t {
+            fn value_variants<'a>() -> &'a [Self] {
+                &$all
+            }
+            fn to_possible_value(&self) -> Option<clap::builder::PossibleValue> {
+                Some(clap::builder::PossibleValue::new(self.name()))
+            }
+        }
+    };
+}
+value_enum!(Method, Method::ALL);
+value_enum!(Precision, [Precision::F32, Precision::F64]);
+value_enum!(Model, Model::ALL);
+
+/// Solver settings from the command line (a file's `[solver]` may give them
+/// too; the two must agree: `config`).
 #[derive(clap::Args, Debug, Clone, Default)]
 pub struct SolverFlags {
-    /// Arithmetic precision: f32 or f64 [default: f64].
-    #[arg(long)]
-    pub precision: Option<String>,
+    /// Arithmetic precision [default: f64].
+    #[arg(long, value_enum)]
+    pub precision: Option<Precision>,
     /// Target error of outcome velocities relative to v_in [default: 1e-6 (f64), 1e-5 (f32)].
     #[arg(long, allow_negative_numbers = true)]
     pub tolerance: Option<f64>,
     /// Physics model: hertz (integrated contacts), hard-sphere (instantaneous
     /// binary collisions, event-driven) or closure (the seed's simultaneous
     /// separation, touching chains) [default: hertz].
-    #[arg(long)]
-    pub model: Option<String>,
+    #[arg(long, value_enum)]
+    pub model: Option<Model>,
     /// Integration method: verlet (order 2), suzuki4, yoshida4 (order 4), yoshida6, kahanli6 (order 6) [default: kahanli6].
-    #[arg(long)]
-    pub method: Option<String>,
+    #[arg(long, value_enum)]
+    pub method: Option<Method>,
 }
 
 impl SolverFlags {
@@ -255,10 +275,10 @@ impl SolverFlags {
     pub fn args(&self) -> Vec<String> {
         let mut a = vec![];
         for (k, v) in [
-            ("--precision", self.precision.clone()),
+            ("--precision", self.precision.map(|p| p.name().to_string())),
             ("--tolerance", self.tolerance.map(|t| t.to_string())),
-            ("--method", self.method.clone()),
-            ("--model", self.model.clone()),
+            ("--method", self.method.map(|m| m.name().to_string())),
+            ("--model", self.model.map(|m| m.name().to_string())),
         ] {
             if let Some(v) = v {
                 a.extend([k.to_string(), v]);
@@ -268,26 +288,6 @@ impl SolverFlags {
     }
 
     pub fn overrides(&self) -> Result<Overrides, InputError> {
-        let precision = match &self.precision {
-            None => None,
-            Some(p) => {
-                Some(Precision::parse(p).ok_or_else(|| flag("--precision", p, "f32 or f64"))?)
-            }
-        };
-        let method = match &self.method {
-            None => None,
-            Some(m) => Some(
-                Method::parse(m)
-                    .ok_or_else(|| flag("--method", m, &format!("one of: {}", Method::names())))?,
-            ),
-        };
-        let model = match &self.model {
-            None => None,
-            Some(m) => Some(
-                Model::parse(m)
-                    .ok_or_else(|| flag("--model", m, &format!("one of: {}", Model::names())))?,
-            ),
-        };
         let tolerance = match self.tolerance {
             None => None,
             Some(t) if t.is_finite() && t > 0.0 && t < 1.0 => Some(t),
@@ -300,9 +300,9 @@ impl SolverFlags {
             }
         };
         Ok(Overrides {
-            model,
-            method,
-            precision,
+            model: self.model,
+            method: self.method,
+            precision: self.precision,
             tolerance,
         })
     }

@@ -235,7 +235,22 @@ fn bad_flags_and_missing_files_are_clear() {
         "{err}"
     );
     let err = bad_input(&["run", "cradle-1", "--precision", "f16"]);
-    assert!(err.contains("--precision f16"), "{err}");
+    assert!(
+        err.contains("'f16'") && err.contains("--precision") && err.contains("f32, f64"),
+        "{err}"
+    );
+    let err = bad_input(&[
+        "sweep",
+        "examples/grid100.toml",
+        "--out",
+        "x.csv",
+        "--method",
+        "euler",
+    ]);
+    assert!(
+        err.contains("'euler'") && err.contains("verlet") && err.contains("kahanli6"),
+        "{err}"
+    );
     let err = bad_input(&["run", "cradle-1", "--tolerance", "2"]);
     assert!(err.contains("--tolerance"), "{err}");
     let err = bad_input(&[

@@ -1,5 +1,5 @@
 //! The integrator — the one place on the Rust side that advances a chain in
-//! time. Its WGSL twin is `shaders/integrate.wgsl` (same function names).
+//! time. Its WGSL twin is `src/engine/integrate.wgsl` (same function names).
 //!
 //! State, in contact coordinates: the overlap δ_c of every contact and the
 //! velocity v_b of every body. Forces depend only on δ, so nothing is ever
