@@ -24,6 +24,10 @@ pub trait Backend: Sync {
     fn adapter(&self) -> String;
     /// Outcomes of `jobs`, in the same order.
     fn run(&self, jobs: &[Job]) -> anyhow::Result<Vec<Outcome>>;
+    /// Scenes per `run` call of the sweep pipeline.
+    fn batch_size(&self) -> u64 {
+        crate::sweep::pipeline::BATCH
+    }
     /// How many `run` calls the sweep pipeline may make at once: the CPU
     /// shares its rayon pool among any number; the GPU takes one.
     fn max_concurrent_runs(&self) -> usize {

@@ -192,7 +192,7 @@ pub fn merge(inputs: &[PathBuf], out: &Path) -> Result<u64> {
             .collect::<Vec<_>>()
             .into(),
     );
-    for k in ["resumed_from_row", "wall_s_this_run"] {
+    for k in ["resumed_from_row", "wall_s_this_run", "stages_s"] {
         obj.remove(k);
     }
     write_atomic(

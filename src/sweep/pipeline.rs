@@ -6,8 +6,8 @@
 //! idle thread steal chunks of another lane's batch, so the last batches of a
 //! sweep are shared out too). A writer thread appends the batches' bytes in
 //! id order. A slow batch (a straggler scene) delays only the writing of its
-//! own rows: the other lanes go on with later batches, up to [`AHEAD`]
-//! batches past the oldest unwritten one, which bounds the memory held by
+//! own rows: the other lanes go on with later batches, up to [`AHEAD_ROWS`]
+//! rows past the oldest unwritten batch, which bounds the memory held by
 //! finished-but-unwritten rows. Lanes that reach that bound help the others
 //! (rayon `yield_now`) instead of sleeping.
 //!
@@ -28,12 +28,14 @@ use crate::engine::Status;
 use crate::output::partial::PartialCsv;
 use crate::output::row;
 
-/// Scenes per batch: the unit of work of a lane and of a backend call.
+/// Scenes per batch on the CPU: the unit of work of a lane and of a backend
+/// call (the backend says its own: [`Backend::batch_size`]).
 pub const BATCH: u64 = 2048;
 
-/// Batches a lane may run ahead of the oldest unwritten one. With ~330 bytes
-/// a row (5 balls) that is ≤ 70 MB of formatted rows waiting for a straggler.
-pub const AHEAD: u64 = 96;
+/// Rows the lanes may run ahead of the oldest unwritten batch. With ~330
+/// bytes a row (5 balls) that is ≤ 70 MB of formatted rows waiting for a
+/// straggler; at least two batches.
+pub const AHEAD_ROWS: u64 = 196_608;
 
 /// Seconds between saves of the wall time so far (for a resumed run's sidecar).
 const WALL_SAVE_S: f64 = 2.0;
@@ -160,7 +162,9 @@ pub fn stream(
     progress: &(dyn Fn(u64) + Sync),
     save: &(dyn Fn(&PartialCsv) -> Result<()> + Sync),
 ) -> Result<(u64, u64, PartialCsv, Stages)> {
-    let n_batches = (hi - lo).div_ceil(BATCH);
+    let batch_size = backend.batch_size().max(1);
+    let ahead = (AHEAD_ROWS / batch_size).max(2);
+    let n_batches = (hi - lo).div_ceil(batch_size);
     let lanes = rayon::current_num_threads().clamp(1, n_batches.max(1) as usize);
     let gate = Gate {
         free: Mutex::new(backend.max_concurrent_runs().max(1)),
@@ -231,9 +235,9 @@ pub fn stream(
                     if b >= n_batches {
                         break;
                     }
-                    // Stay within AHEAD batches of the writer: help the others meanwhile.
+                    // Stay within `ahead` batches of the writer: help the others meanwhile.
                     let t = Instant::now();
-                    while b >= written.load(Ordering::SeqCst) + AHEAD
+                    while b >= written.load(Ordering::SeqCst) + ahead
                         && !abort.load(Ordering::SeqCst)
                     {
                         if rayon::yield_now() != Some(rayon::Yield::Executed) {
@@ -241,13 +245,13 @@ pub fn stream(
                         }
                     }
                     st.waiting += t.elapsed().as_secs_f64();
-                    let first = lo + b * BATCH;
+                    let first = lo + b * batch_size;
                     let r = batch(
                         sweep,
                         opts,
                         backend,
                         &gate,
-                        (first, (first + BATCH).min(hi)),
+                        (first, (first + batch_size).min(hi)),
                         &mut st,
                     );
                     let failed = r.is_err();
