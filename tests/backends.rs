@@ -251,10 +251,14 @@ fn gpu_matches_cpu_on_1200_scenes_f32() {
 
 #[test]
 fn shaders_validate_with_naga() {
-    for p in [Precision::F32, Precision::F64] {
-        let src = shader_source(p);
+    use hertz_cradle::backend::gpu::{shader_source_sized, SIZE_CLASSES};
+    for (p, class) in [Precision::F32, Precision::F64]
+        .into_iter()
+        .flat_map(|p| SIZE_CLASSES.map(|c| (p, c)))
+    {
+        let src = shader_source_sized(p, class);
         let module = naga::front::wgsl::parse_str(&src)
-            .unwrap_or_else(|e| panic!("{}: {}", p.name(), e.emit_to_string(&src)));
+            .unwrap_or_else(|e| panic!("{} {class}: {}", p.name(), e.emit_to_string(&src)));
         naga::valid::Validator::new(
             naga::valid::ValidationFlags::all(),
             naga::valid::Capabilities::FLOAT64,
@@ -530,4 +534,53 @@ fn shader_cites_only_rust_items_that_exist() {
         "the shader cites items that do not exist: {missing:?}"
     );
     assert!(cited > 10, "{cited} citations found");
+}
+
+/// Pipelines are specialised by chain size (private arrays of 8, 16, 32 or
+/// 64 bodies): chains at both edges of every class, in one mixed batch, give
+/// the CPU's outcomes — bit for bit in f64 (on lavapipe), with the same steps.
+#[test]
+fn gpu_size_classes_match_cpu() {
+    let Some(g) = gpu() else { return };
+    let sizes = [2usize, 8, 9, 16, 17, 32, 33, 64];
+    let jobs: Vec<Job> = sizes
+        .iter()
+        .flat_map(|&n| {
+            let v: Vec<String> = (0..n)
+                .map(|i| if i == 0 { "1.0".into() } else { "0".into() })
+                .collect();
+            let text = format!("balls = {n}\ngap = 1e-6\nvelocity = [{}]", v.join(", "));
+            [Precision::F64, Precision::F32].map(|p| job(&text, p, Some(1e-4)))
+        })
+        .collect();
+    let (c, d) = (Cpu.run(&jobs).unwrap(), g.run(&jobs).unwrap());
+    for ((j, x), y) in jobs.iter().zip(&c).zip(&d) {
+        let Job::Run { chain, solver } = j else {
+            unreachable!()
+        };
+        assert_eq!(x.status, Status::Ok, "{} balls", chain.n_balls);
+        let worst =
+            x.v.iter()
+                .zip(&y.v)
+                .map(|(a, b)| (a - b).abs())
+                .fold(0.0, f64::max);
+        let bound = match solver.precision {
+            Precision::F64 => 1e-12,
+            Precision::F32 => 1e-6,
+        };
+        assert!(
+            worst <= bound,
+            "{} balls {}: {worst:e}",
+            chain.n_balls,
+            solver.precision.name()
+        );
+        if solver.precision == Precision::F64 {
+            assert_eq!(
+                (x.steps, x.contacts),
+                (y.steps, y.contacts),
+                "{} balls",
+                chain.n_balls
+            );
+        }
+    }
 }

@@ -4,6 +4,8 @@
 //! work so tests can bring their own adapter.
 
 use std::borrow::Cow;
+use std::collections::{BTreeMap, HashMap};
+use std::sync::{Arc, Mutex};
 
 use anyhow::{anyhow, bail, Context, Result};
 use bytemuck::Pod;
@@ -26,11 +28,31 @@ const HARDWARE_BATCH: u64 = 16_384;
 /// Dispatches submitted between two looks at which scenes are still running.
 const DISPATCHES_PER_ROUND: usize = 4;
 
-/// The whole shader for one precision: the generated prelude (types,
-/// layout, codes, constants), then the body.
-pub fn shader_source(p: Precision) -> Cow<'static, str> {
-    Cow::Owned(layout::prelude(p) + "\n" + SHADER_BODY)
+/// The whole shader for one precision and chains of up to `max_bodies`
+/// bodies: the generated prelude (types, layout, codes, constants, the
+/// private arrays' size), then the body.
+pub fn shader_source_sized(p: Precision, max_bodies: usize) -> Cow<'static, str> {
+    Cow::Owned(layout::prelude(p, max_bodies) + "\n" + SHADER_BODY)
 }
+
+/// The shader for any chain (private arrays of `scene::MAX_BALLS`).
+pub fn shader_source(p: Precision) -> Cow<'static, str> {
+    shader_source_sized(p, crate::scene::MAX_BALLS)
+}
+
+/// Pipelines are specialised to chains of at most this many bodies.
+pub const SIZE_CLASSES: [usize; 4] = [8, 16, 32, 64];
+
+/// The smallest size class that holds `n_bodies`.
+pub fn size_class(n_bodies: usize) -> usize {
+    SIZE_CLASSES
+        .into_iter()
+        .find(|&c| n_bodies <= c)
+        .unwrap_or(crate::scene::MAX_BALLS)
+}
+
+/// (f64, terms, size class).
+type PipeKey = (bool, bool, usize);
 
 /// Loop iterations of one step of `ch` in `n_weights` substeps (the
 /// pendulum's sine is a 10-term loop per body, air drag's decay up to ~25),
@@ -115,10 +137,10 @@ pub struct Gpu {
     device: wgpu::Device,
     queue: wgpu::Queue,
     layout: wgpu::BindGroupLayout,
-    /// [elastic free lines, with the pendulum and damping terms] (`TERMS`).
-    pipe_f32: [wgpu::ComputePipeline; 2],
-    /// `None` when the adapter lacks SHADER_F64.
-    pipe_f64: Option<[wgpu::ComputePipeline; 2]>,
+    pipeline_layout: wgpu::PipelineLayout,
+    /// Pipelines by (precision, terms, size class), compiled on first use.
+    pipes: Mutex<HashMap<PipeKey, Arc<wgpu::ComputePipeline>>>,
+    f64_ok: bool,
     info: wgpu::AdapterInfo,
     max_workgroups: u32,
     /// Largest storage buffer binding (bytes).
@@ -168,55 +190,72 @@ impl Gpu {
             bind_group_layouts: &[Some(&layout)],
             immediate_size: 0,
         });
-        let pipeline = |p: Precision, terms: bool| -> Result<wgpu::ComputePipeline> {
-            // Catch shader or pipeline errors as values instead of a panic.
-            let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
-            let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-                label: Some("integrate.wgsl"),
-                source: wgpu::ShaderSource::Wgsl(shader_source(p)),
-            });
-            let pipe = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                label: Some("integrate"),
-                layout: Some(&pl),
-                module: &module,
-                entry_point: Some("main"),
-                // TERMS = false: the compiler drops the pendulum and damping code.
-                compilation_options: wgpu::PipelineCompilationOptions {
-                    constants: &[("TERMS", if terms { 1.0 } else { 0.0 })],
-                    ..Default::default()
-                },
-                cache: None,
-            });
-            if let Some(e) = pollster::block_on(scope.pop()) {
-                bail!(
-                    "the {} shader does not build on {}: {e}",
-                    p.name(),
-                    info.name
-                );
-            }
-            Ok(pipe)
-        };
-        let both = |p| -> Result<[wgpu::ComputePipeline; 2]> {
-            Ok([pipeline(p, false)?, pipeline(p, true)?])
-        };
-        let pipe_f32 = both(Precision::F32)?;
-        let pipe_f64 = if f64_ok {
-            Some(both(Precision::F64)?)
-        } else {
-            None
-        };
         let max_workgroups = device.limits().max_compute_workgroups_per_dimension;
         let max_binding = device.limits().max_storage_buffer_binding_size;
-        Ok(Gpu {
+        let gpu = Gpu {
             device,
             queue,
             layout,
-            pipe_f32,
-            pipe_f64,
+            pipeline_layout: pl,
+            pipes: Mutex::new(HashMap::new()),
+            f64_ok,
             info,
             max_workgroups,
             max_binding,
-        })
+        };
+        // Build the largest class now: a shader that does not build on this
+        // adapter fails here, before any work, not in the middle of a sweep.
+        gpu.pipeline(Precision::F32, true, *SIZE_CLASSES.last().expect("a class"))?;
+        if f64_ok {
+            gpu.pipeline(Precision::F64, true, *SIZE_CLASSES.last().expect("a class"))?;
+        }
+        Ok(gpu)
+    }
+
+    /// The pipeline for `precision`, `terms` (false: elastic free lines, the
+    /// pendulum, damping and drag code compiled out through the `TERMS`
+    /// override) and chains of at most `class` bodies (the shader's private
+    /// arrays sized to it: a 5-ball chain's state fits in registers instead
+    /// of spilling 64-body arrays to local memory). Compiled on first use.
+    fn pipeline(
+        &self,
+        p: Precision,
+        terms: bool,
+        class: usize,
+    ) -> Result<Arc<wgpu::ComputePipeline>> {
+        let key = (p == Precision::F64, terms, class);
+        let mut pipes = self.pipes.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(pipe) = pipes.get(&key) {
+            return Ok(pipe.clone());
+        }
+        let device = &self.device;
+        // Catch shader or pipeline errors as values instead of a panic.
+        let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("integrate.wgsl"),
+            source: wgpu::ShaderSource::Wgsl(shader_source_sized(p, class)),
+        });
+        let pipe = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some("integrate"),
+            layout: Some(&self.pipeline_layout),
+            module: &module,
+            entry_point: Some("main"),
+            compilation_options: wgpu::PipelineCompilationOptions {
+                constants: &[("TERMS", if terms { 1.0 } else { 0.0 })],
+                ..Default::default()
+            },
+            cache: None,
+        });
+        if let Some(e) = pollster::block_on(scope.pop()) {
+            bail!(
+                "the {} shader (chains up to {class} bodies) does not build on {}: {e}",
+                p.name(),
+                self.info.name
+            );
+        }
+        let pipe = Arc::new(pipe);
+        pipes.insert(key, pipe.clone());
+        Ok(pipe)
     }
 
     pub fn info(&self) -> &wgpu::AdapterInfo {
@@ -224,19 +263,27 @@ impl Gpu {
     }
 
     pub fn has_f64(&self) -> bool {
-        self.pipe_f64.is_some()
+        self.f64_ok
     }
 
     /// Integrate `jobs` (all valid) in precision `R`; one [`Run`] each.
     /// `terms`: some scene is a pendulum or dissipative (the general pipeline).
-    fn runs<R: Real + Pod>(&self, jobs: &[(&Chain, &Solver)], terms: bool) -> Result<Vec<Run>> {
-        let pipes = match std::mem::size_of::<R>() {
-            4 => &self.pipe_f32,
-            _ => self.pipe_f64.as_ref().ok_or_else(|| {
-                anyhow!("{} has no 64-bit float support (SHADER_F64): use --precision f32 or --backend cpu", self.info.name)
-            })?,
+    fn runs<R: Real + Pod>(
+        &self,
+        jobs: &[(&Chain, &Solver)],
+        terms: bool,
+        class: usize,
+    ) -> Result<Vec<Run>> {
+        let p = match std::mem::size_of::<R>() {
+            4 => Precision::F32,
+            _ if self.f64_ok => Precision::F64,
+            _ => bail!(
+                "{} has no 64-bit float support (SHADER_F64): use --precision f32 or --backend cpu",
+                self.info.name
+            ),
         };
-        let pipe = &pipes[terms as usize];
+        let pipe = self.pipeline(p, terms, class)?;
+        let pipe = pipe.as_ref();
         // Parts small enough for the adapter: workgroups per dimension, and
         // the largest storage binding (params and state grow with N).
         let max_scenes = (self.max_workgroups as usize) * WORKGROUP as usize;
@@ -538,32 +585,32 @@ impl Backend for Gpu {
 
     fn run(&self, jobs: &[Job]) -> Result<Vec<Outcome>> {
         let mut out: Vec<Option<Outcome>> = vec![None; jobs.len()];
-        for (p, terms) in [
-            (Precision::F32, false),
-            (Precision::F32, true),
-            (Precision::F64, false),
-            (Precision::F64, true),
-        ] {
-            let (idx, batch): (Vec<usize>, Vec<(&Chain, &Solver)>) = jobs
-                .iter()
-                .enumerate()
-                .filter_map(|(i, j)| match j {
-                    Job::Run { chain, solver }
-                        if solver.precision == p
-                            && solver.model == Model::Hertz
-                            && chain.needs_terms() == terms =>
-                    {
-                        Some((i, (chain, solver)))
-                    }
-                    _ => None,
-                })
-                .unzip();
-            if batch.is_empty() {
-                continue;
+        // One group per pipeline: precision, terms, size class.
+        let mut groups: BTreeMap<PipeKey, Vec<usize>> = BTreeMap::new();
+        for (i, j) in jobs.iter().enumerate() {
+            if let Job::Run { chain, solver } = j {
+                if solver.model == Model::Hertz {
+                    let key = (
+                        solver.precision == Precision::F64,
+                        chain.needs_terms(),
+                        size_class(chain.n_bodies()),
+                    );
+                    groups.entry(key).or_default().push(i);
+                }
             }
-            let runs = match p {
-                Precision::F32 => self.runs::<f32>(&batch, terms)?,
-                Precision::F64 => self.runs::<f64>(&batch, terms)?,
+        }
+        for ((f64, terms, class), idx) in groups {
+            let batch: Vec<(&Chain, &Solver)> = idx
+                .iter()
+                .map(|&i| match &jobs[i] {
+                    Job::Run { chain, solver } => (chain, solver),
+                    Job::Invalid { .. } => unreachable!("grouped runs only"),
+                })
+                .collect();
+            let runs = if f64 {
+                self.runs::<f64>(&batch, terms, class)?
+            } else {
+                self.runs::<f32>(&batch, terms, class)?
             };
             for ((i, (ch, solver)), run) in idx.into_iter().zip(batch).zip(runs) {
                 out[i] = Some(Outcome::from_run(

@@ -210,8 +210,9 @@ fn offsets_wgsl(s: &mut String, prefix: &str, fields: &[Field]) {
     }
 }
 
-/// The shader's prelude for `precision`: everything above, as WGSL.
-pub fn prelude(precision: Precision) -> String {
+/// The shader's prelude for `precision` and chains of up to `max_bodies`
+/// bodies (the private arrays' size): everything above, as WGSL.
+pub fn prelude(precision: Precision, max_bodies: usize) -> String {
     use crate::engine::real::Real;
     let mut s = String::new();
     let _ = writeln!(
@@ -230,8 +231,7 @@ pub fn prelude(precision: Precision) -> String {
     );
     let _ = writeln!(
         s,
-        "// Private arrays' size (scene::MAX_BALLS).\nconst MAX_BALLS: u32 = {}u;",
-        crate::scene::MAX_BALLS
+        "// Private arrays' size: the pipeline's size class (backend::gpu::SIZE_CLASSES, at most scene::MAX_BALLS).\nconst MAX_BALLS: u32 = {max_bodies}u;"
     );
     let _ = writeln!(
         s,
