@@ -308,13 +308,7 @@ impl SolverFlags {
     }
 }
 
-pub fn flag(flag: &str, value: &str, allowed: &str) -> InputError {
-    InputError::Flag {
-        flag: flag.into(),
-        value: value.into(),
-        allowed: allowed.into(),
-    }
-}
+pub use crate::error::flag;
 
 #[cfg(test)]
 mod tests {

@@ -75,6 +75,15 @@ pub enum InputError {
     },
 }
 
+/// A bad flag value: `FLAG VALUE: allowed`.
+pub fn flag(flag: &str, value: &str, allowed: &str) -> InputError {
+    InputError::Flag {
+        flag: flag.into(),
+        value: value.into(),
+        allowed: allowed.into(),
+    }
+}
+
 fn loc(origin: &str, line: &Option<usize>) -> String {
     match line {
         Some(l) => format!("{origin}:{l}"),

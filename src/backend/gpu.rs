@@ -613,11 +613,8 @@ impl Backend for Gpu {
                 self.runs::<f32>(&batch, terms, class)?
             };
             for ((i, (ch, solver)), run) in idx.into_iter().zip(batch).zip(runs) {
-                out[i] = Some(Outcome::from_run(
-                    ch,
-                    &run,
-                    solver.dt(ch).unwrap_or(f64::NAN),
-                ));
+                let dt = crate::engine::row_dt(&plan(ch, solver).0.unwrap_or(UNSTEPPED));
+                out[i] = Some(Outcome::from_run(ch, &run, dt));
             }
         }
         Ok(out

@@ -92,8 +92,17 @@ fn hertz_task<'a>(chain: &'a Chain, solver: &Solver) -> (Task<'a>, f64) {
     let (sp, lim) = plan(chain, solver);
     // A chain where nothing can collide still runs: the integrator sees it settled.
     let plan = sp.unwrap_or(UNSTEPPED);
-    let dt = if plan.h.is_finite() { plan.h } else { f64::NAN };
-    (Task { chain, plan, lim }, dt)
+    (Task { chain, plan, lim }, row_dt(&plan))
+}
+
+/// The `dt` column of a Hertz run planned as `plan`: its nominal step, NaN
+/// when nothing can collide. Every backend reports this one.
+pub fn row_dt(plan: &StepPlan) -> f64 {
+    if plan.h.is_finite() {
+        plan.h
+    } else {
+        f64::NAN
+    }
 }
 
 /// A comparison model's outcome (closed-form or event-driven).

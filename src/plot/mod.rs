@@ -10,7 +10,7 @@ use std::path::Path;
 
 use plotters::style::FontStyle;
 
-use crate::cli::flag;
+use crate::error::flag;
 
 pub const FONT: &str = "sans-serif";
 const FONT_BYTES: &[u8] = include_bytes!("../../assets/fonts/DejaVuSans.ttf");
