@@ -503,11 +503,18 @@ fn shader_and_host_agree_on_the_boundary() {
 #[test]
 fn shader_cites_only_rust_items_that_exist() {
     let body = hertz_cradle::backend::gpu::SHADER_BODY;
-    let src: String = ["src/engine", "src/backend", "src/scene"]
-        .iter()
-        .flat_map(|d| std::fs::read_dir(d).unwrap())
-        .map(|e| std::fs::read_to_string(e.unwrap().path()).unwrap_or_default())
-        .collect();
+    fn rust_under(dir: &std::path::Path, out: &mut String) {
+        for e in std::fs::read_dir(dir).unwrap() {
+            let p = e.unwrap().path();
+            if p.is_dir() {
+                rust_under(&p, out);
+            } else if p.extension().is_some_and(|x| x == "rs") {
+                out.push_str(&std::fs::read_to_string(&p).unwrap());
+            }
+        }
+    }
+    let mut src = String::new();
+    rust_under(std::path::Path::new("src"), &mut src);
     let (mut cited, mut missing) = (0, vec![]);
     for (i, _) in body.match_indices("engine::") {
         let path: String = body[i..]
@@ -523,7 +530,8 @@ fn shader_cites_only_rust_items_that_exist() {
         ]
         .iter()
         .any(|k| src.contains(&format!("{k}{item}")))
-            || std::path::Path::new(&format!("src/{}.rs", path.replace("::", "/"))).exists();
+            || std::path::Path::new(&format!("src/{}.rs", path.replace("::", "/"))).exists()
+            || std::path::Path::new(&format!("src/{}/mod.rs", path.replace("::", "/"))).exists();
         if !found {
             missing.push(path);
         }

@@ -1,4 +1,4 @@
-//! The GPU backend: `src/engine/integrate.wgsl` through wgpu, one invocation per
+//! The GPU backend: `src/engine/integrate/integrate.wgsl` through wgpu, one invocation per
 //! scene. The context (device, pipelines, bind-group layout) is built once per
 //! sweep and reused for every batch; device creation is kept apart from the
 //! work so tests can bring their own adapter.
@@ -20,7 +20,7 @@ use crate::engine::{plan, simulate_chain, Chain, Model, Outcome, Silent, Solver,
 use crate::scene::Precision;
 
 /// The shader's body; its prelude comes from `layout::prelude`.
-pub const SHADER_BODY: &str = include_str!("../engine/integrate.wgsl");
+pub const SHADER_BODY: &str = include_str!("../engine/integrate/integrate.wgsl");
 /// Threads per workgroup (`@workgroup_size` in the shader).
 const WORKGROUP: u32 = 64;
 /// Scenes per sweep batch on a hardware GPU (`Backend::batch_size`).

@@ -1,543 +1,92 @@
-//! The integrator — the one place on the Rust side that advances a chain in
-//! time. Its WGSL twin is `src/engine/integrate.wgsl` (same function names).
-//!
-//! State, in contact coordinates: the overlap δ_c of every contact and the
-//! velocity v_b of every body. Forces depend only on δ, so nothing is ever
-//! computed from large absolute positions (in f32, x_i − x_{i+1} of two
-//! positions that have drifted a metre loses every digit of a 10 µm overlap).
-//!
-//! A sweep's chains run side by side ([`integrate_batch`]): lane l of every
-//! state array is one chain, each lane takes its own steps, and the substeps
-//! of all lanes are one loop that the compiler vectorises (AVX when the CPU
-//! has it, picked at run time) — a single chain spends most of its time
-//! waiting on each √δ in turn. Each lane does the same operations as a chain
-//! run alone ([`integrate`], one lane), so results do not depend on the
-//! batch, and are bit-identical to the shader's in f64.
-//!
-//! Work a scene does not need is skipped: while every contact is open the chain
-//! is in free flight and is advanced analytically to the next contact onset
-//! (0 steps); an impact nothing else can join is taken in closed form
-//! (`Lanes::exact_impact`, 0 steps); the run ends as soon as no contact is
-//! closed and none is closing.
-//!
-//! Pendulum (`Chain::is_pendulum`): every body feels −g·sin(x_b/L), with x_b
-//! rebuilt from body 0's displacement and the overlaps. Free flight is then
-//! stepped with the long steps `StepPlan::h_free` (chosen from the tolerance
-//! and the duration), halving them towards each contact onset, and the run
-//! ends exactly at the duration. Damping: Hunt–Crossley contacts
-//! (`contact::contact_force`, χ set from each contact's closing speed when it
-//! closes, lowered if it is later driven closed faster) and air drag (the exact decay e^{−γ·s} in every kick).
+//! `L` chains side by side (lane l of every array is one chain) and the step
+//! kernels on them: the twins of `integrate.wgsl`'s forces, kicks, drifts,
+//! graded steps, exact impacts and free flight, one lane at a time there.
 
-use super::contact::{contact_force, fifth_root, hertz_force};
-use super::real::Real;
-use super::Chain;
-use crate::scene::MAX_BALLS;
-
-/// Closing speeds below [`Real::FLOOR_ULPS`] ulps of v_in count as zero:
-/// round-off, not an approach. Both backends start from this value.
-///
-/// With a tolerance, closing speeds below `settle_rel`·v_in count as zero too:
-/// the velocities themselves are only that accurate, and a collision at
-/// closing speed r changes them by about r. Without this, residuals of 1e-9·v
-/// left by exact exchanges "collide" 10^7 s later and hit the time cap.
-pub fn closing_speed_floor<R: Real>(v_in: f64, settle_rel: f64) -> R {
-    (R::of(R::FLOOR_ULPS) * R::epsilon() * R::of(v_in)).max(R::of(settle_rel * v_in))
-}
-
-/// A velocity at or above this magnitude (m/s) counts as non-finite; the
-/// shader has no `isfinite`, so both twins use this test.
-pub const FINITE_LIMIT: f64 = 1e30;
-
-/// Why a run stopped.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum End {
-    /// Every contact open and no two bodies approaching: no collision can follow.
-    Settled,
-    /// A pendulum run reached its duration.
-    Duration,
-    StepCap,
-    TimeCap,
-    NonFinite,
-}
-
-/// Caps on one run.
-#[derive(Clone, Copy, Debug)]
-pub struct Limits {
-    pub max_steps: u64,
-    /// Simulated time (s).
-    pub max_time: f64,
-}
-
-/// Receives the state after every step and at both ends of every free flight,
-/// per body: displacement x (m) and velocity v (m/s).
-pub trait Observer {
-    /// `false` compiles the calls (and the position bookkeeping) away.
-    const ACTIVE: bool = true;
-    fn state(&mut self, t: f64, x: &[f64], v: &[f64]);
-}
-
-/// The observer of a sweep: sees nothing, costs nothing.
-pub struct Silent;
-impl Observer for Silent {
-    const ACTIVE: bool = false;
-    fn state(&mut self, _: f64, _: &[f64], _: &[f64]) {}
-}
-
-/// What a run produced, per body, in f64.
-#[derive(Clone, Debug)]
-pub struct Run {
-    pub end: End,
-    pub v: Vec<f64>,
-    pub overlap: Vec<f64>,
-    pub steps: u64,
-    /// Time of the last state (s).
-    pub t: f64,
-    /// Onset of the first contact (s), if any.
-    pub t_first_contact: Option<f64>,
-    /// Last time a contact opened (s), located inside its step.
-    pub t_last_release: Option<f64>,
-    /// Largest overlap seen (m) and its ratio to the smaller boundary radius.
-    pub max_overlap: f64,
-    pub max_overlap_ratio: f64,
-    /// Final displacement of each body (m): body 0's, then x_{b+1} = x_b − gap_b − δ_b.
-    /// NaN for a free line run without an observer (not tracked).
-    pub x: Vec<f64>,
-    /// Contact onsets (a contact open at the start of a step and closed at its end).
-    pub contacts: u64,
-}
-
-/// sin θ for the pendulum force: θ reduced to [−π/2, π/2], then Taylor to θ^21
-/// (error < 2e-18), the same operations as `pendulum_sin` in the shader
-/// (SPIR-V has no f64 sin).
-#[inline(always)]
-pub fn pendulum_sin<R: Real>(th: R) -> R {
-    use std::f64::consts::{FRAC_PI_2, PI, TAU};
-    let mut x = th - R::of(TAU) * (th / R::of(TAU) + R::of(0.5)).floor();
-    if x > R::of(FRAC_PI_2) {
-        x = R::of(PI) - x;
-    } else if x < -R::of(FRAC_PI_2) {
-        x = -R::of(PI) - x;
-    }
-    let x2 = x * x;
-    let mut p = R::one();
-    for n in (1..=10u32).rev() {
-        p = R::one() - x2 * p / R::of((2 * n * (2 * n + 1)) as f64);
-    }
-    x * p
-}
-
-/// e^{−y} for y ≥ 0 (air drag over a kick): halve y below 1/16, Taylor to y^9,
-/// square back; the same operations as `decay` in the shader (SPIR-V has no
-/// f64 exp).
-#[inline(always)]
-pub fn decay<R: Real>(y: R) -> R {
-    let mut z = y;
-    let mut k = 0u32;
-    while z > R::of(0.0625) && k < 64 {
-        z = z * R::of(0.5);
-        k += 1;
-    }
-    let mut p = R::one();
-    for n in (1..=9u32).rev() {
-        p = R::one() - z * p / R::of(n as f64);
-    }
-    for _ in 0..k {
-        p = p * p;
-    }
-    p
-}
-
-/// v += inc; in f32 with Kahan compensation (`cv` carries the lost low
-/// bits): thousands of kicks 1e-4 the size of v would otherwise lose ~1e-4·v.
-#[inline(always)]
-fn add<R: Real>(v: &mut R, cv: &mut R, inc: R) {
-    if R::COMPENSATED {
-        let y = inc - *cv;
-        let t = *v + y;
-        *cv = (t - *v) - y;
-        *v = t;
-    } else {
-        *v = *v + inc;
-    }
-}
-
-/// How steps are taken: a symmetric composition of velocity-Verlet substeps
-/// of sizes `weights[i]·s`, with the step `s` graded near contact kinks.
-#[derive(Clone, Copy, Debug)]
-pub struct StepPlan {
-    /// Nominal step (s); `INFINITY` when nothing can collide.
-    pub h: f64,
-    /// Substep weights (sum 1): `[1]` is velocity Verlet.
-    pub weights: &'static [f64],
-    /// Grade steps near contact onsets and releases (methods of order > 2).
-    pub graded: bool,
-    /// Smallest graded step (s).
-    pub h_min: f64,
-    /// Grading exponent in quarters: at time distance T from a kink the step
-    /// is h·(T/t_c)^(q/4).
-    pub grade_quarters: u32,
-    /// The chain's time scale t_c (s), where grading ends.
-    pub t_scale: f64,
-    /// Closing speeds below this fraction of v_in are noise: the run ends
-    /// (a tenth of the tolerance; 0 with a fixed `dt`).
-    pub settle_rel: f64,
-    /// Pendulum: the step (s) while every contact is open; unused on a free line.
-    pub h_free: f64,
-    /// Take isolated two-body impacts in closed form (elastic free lines
-    /// under a tolerance; a fixed `dt` integrates every impact).
-    pub exact: bool,
-    /// Stiffness cap: while the chain's fastest local frequency ω exceeds
-    /// `omega_ref` (rad/s), the step is at most `h_stiff`·ω_ref/ω
-    /// ([`super::Chain::stiffness_coefficients`]); `h_stiff` 0: no cap.
-    pub h_stiff: f64,
-    pub omega_ref: f64,
-}
-
-/// The step each lane takes now, at most `s0`. The Hertz force has a δ^{3/2} kink
-/// where a contact opens or closes, which costs a high-order method its order;
-/// steps are made small near every kink, on both sides: at time distance
-/// T < t_c from a kink the step is h·(T/t_c)^(q/4) (the p-th derivative of
-/// the force grows as T^{3/2−p}); at any distance it is at most T/2 before
-/// the kink and 2T after it, never less than `h_min`, where a step crosses
-/// the kink. A kink ahead is the first root of |δ| − r·t − a·t²/2 (r, a: the
-/// pair's speed and acceleration towards it; a comes from the neighbours'
-/// pushes, so a contact that has just opened and is pushed shut again is seen
-/// coming); one behind (moving away) is |δ|/|r| ago. Kinks at T ≥ 2·s0
-/// restrict nothing. On a free line `s0` is h or the stiffness cap; on a
-/// pendulum in free flight it is the long free-flight step, halved towards
-/// each onset.
-///
-/// (T/t_c)^(q/4) grows with T, so the grading is evaluated once, at the
-/// nearest kink: min over contacts of max(min(cap, h·g(T)), h_min) is
-/// max(min(min cap, h·g(min T)), h_min), to the last bit.
-///
-/// Without branches (every lane at once); the same operations as
-/// `graded_step` in the shader.
-#[inline(always)]
-#[allow(clippy::too_many_arguments)]
-fn graded_steps<R: Real, const L: usize>(
-    nc: usize,
-    d: &[[R; L]; MAX_BALLS],
-    v: &[[R; L]; MAX_BALLS],
-    acc: &Accel<'_, R, L>,
-    s0: &[R; L],
-    h: &[R; L],
-    h_min: &[R; L],
-    tc: &[R; L],
-    quarters: u32,
-) -> [R; L] {
-    let zero = R::zero();
-    let half = R::of(0.5);
-    let inf = R::infinity();
-    let mut cap = [inf; L];
-    let mut near = [inf; L];
-    for c in 0..nc {
-        let fc = &acc.f[c];
-        let (im_a, im_b) = (&acc.inv_m[c], &acc.inv_m[c + 1]);
-        for l in 0..L {
-            let r = v[c][l] - v[c + 1][l];
-            let dc = d[c][l];
-            // δ̈ of the pair: its neighbours' contact pushes and gravity.
-            let left = if c > 0 { acc.f[c - 1][l] } else { zero };
-            let right = if c + 1 < nc { acc.f[c + 1][l] } else { zero };
-            let mut a = (left - fc[l]) * im_a[l] - (fc[l] - right) * im_b[l];
-            if acc.pend {
-                a = a + (acc.g[c][l] - acc.g[c + 1][l]);
-            }
-            // Distance to the kink, and speed and acceleration towards it.
-            let dd = dc.abs();
-            let (rr, aa) = if dc > zero { (-r, -a) } else { (r, a) };
-            let disc = rr * rr + (aa + aa) * dd;
-            let den = rr + hi(disc, zero).sqrt();
-            let ahead = if disc >= zero && den > zero {
-                (dd + dd) / den
-            } else {
-                inf
-            };
-            let behind = if rr < zero { dd / -rr } else { inf };
-            let tk = lo(ahead, behind);
-            let skip = tk >= s0[l] + s0[l];
-            let cc = lo(ahead * half, behind + behind);
-            cap[l] = if skip { cap[l] } else { lo(cap[l], cc) };
-            near[l] = if skip { near[l] } else { lo(near[l], tk) };
-        }
-    }
-    let mut s = *s0;
-    for l in 0..L {
-        let q = (near[l] / tc[l]).sqrt().sqrt();
-        let mut g = R::one();
-        for _ in 0..quarters {
-            g = g * q;
-        }
-        let graded = if near[l] < tc[l] {
-            lo(cap[l], h[l] * g)
-        } else {
-            cap[l]
-        };
-        s[l] = lo(s[l], hi(graded, h_min[l]));
-    }
-    s
-}
-
-/// What the pairs' relative accelerations are made of: the contact forces
-/// at the start of the step, the inverse masses, and (pendulum) gravity.
-struct Accel<'a, R, const L: usize> {
-    f: &'a [[R; L]; MAX_BALLS],
-    inv_m: &'a [[R; L]; MAX_BALLS],
-    g: &'a [[R; L]; MAX_BALLS],
-    pend: bool,
-}
-
-/// min and max without the NaN care of `f64::min`: one instruction each.
-/// A NaN anywhere ends the run as non-finite before it matters.
-#[inline(always)]
-fn lo<R: Real>(a: R, b: R) -> R {
-    if b < a {
-        b
-    } else {
-        a
-    }
-}
-#[inline(always)]
-fn hi<R: Real>(a: R, b: R) -> R {
-    if b > a {
-        b
-    } else {
-        a
-    }
-}
-
-/// The stiffness cap of every lane: `s0` at most h_stiff/Λ^{1/4} (not below
-/// h_min), Λ = max_b (stiff_r_{b−1}·δ⁺_{b−1} + stiff_l_b·δ⁺_b) bounding
-/// (ω/ω_ref)⁴, ω the chain's fastest local frequency
-/// ([`super::Chain::stiffness_coefficients`]). No cap while every contact is
-/// open or where h_stiff is 0. The same operations as `stiffness_cap` in the
-/// shader.
-#[inline(always)]
-fn stiffness_cap<R: Real, const L: usize>(
-    nc: usize,
-    d: &[[R; L]; MAX_BALLS],
-    sl: &[[R; L]; MAX_BALLS],
-    sr: &[[R; L]; MAX_BALLS],
-    h_stiff: &[R; L],
-    h_min: &[R; L],
-    s0: &mut [R; L],
-) {
-    let zero = R::zero();
-    let mut lam = [zero; L];
-    let mut right = [zero; L]; // the row's part from the contact on the left
-    for c in 0..nc {
-        for l in 0..L {
-            let dp = hi(d[c][l], zero);
-            lam[l] = hi(lam[l], right[l] + sl[c][l] * dp);
-            right[l] = sr[c][l] * dp;
-        }
-    }
-    for l in 0..L {
-        let lm = hi(lam[l], right[l]);
-        let cap = hi(h_stiff[l] / lm.sqrt().sqrt(), h_min[l]);
-        if lm > zero && h_stiff[l] > zero && cap < s0[l] {
-            s0[l] = cap;
-        }
-    }
-}
-
-/// Kick sizes of a step, in units of the step, for substep weights w_0..w_{n−1}:
-/// w_0/2, (w_0 + w_1)/2, …, (w_{n−2} + w_{n−1})/2, w_{n−1}/2. Substep i's
-/// closing half kick and substep i+1's opening one use the same forces, so
-/// they are one kick: n + 1 kicks a step instead of 2n. The shader gets the
-/// same numbers from the host.
-pub fn kick_weights(weights: &[f64]) -> Vec<f64> {
-    let n = weights.len();
-    (0..=n)
-        .map(|i| {
-            let before = if i > 0 { weights[i - 1] } else { 0.0 };
-            let after = if i < n { weights[i] } else { 0.0 };
-            0.5 * (before + after)
-        })
-        .collect()
-}
-
-/// One run of a batch: a chain, its steps and its caps.
-#[derive(Clone, Copy, Debug)]
-pub struct Task<'a> {
-    pub chain: &'a Chain,
-    pub plan: StepPlan,
-    pub lim: Limits,
-}
-
-impl Task<'_> {
-    /// Runs with equal keys share a lane group: the same bodies, substeps and
-    /// terms (everything else may differ from lane to lane).
-    fn key(&self) -> (usize, usize, usize, bool, u32, bool, bool, bool) {
-        let ch = self.chain;
-        (
-            ch.n_bodies(),
-            self.plan.weights.as_ptr() as usize,
-            self.plan.weights.len(),
-            self.plan.graded,
-            self.plan.grade_quarters,
-            ch.is_pendulum(),
-            ch.damping_a > 0.0,
-            ch.air_drag > 0.0,
-        )
-    }
-}
-
-/// Chains of up to 12 bodies integrated side by side per batch (longer ones:
-/// 4, so that every lane's state stays in L1 cache).
-pub const LANES: usize = 32;
-
-/// Integrate every task, [`LANES`] at a time; results in task order. The
-/// same arithmetic, operation for operation, as [`integrate`] on each.
-pub fn integrate_batch<R: Real>(tasks: &[Task]) -> Vec<Run> {
-    let keys: Vec<_> = tasks.iter().map(Task::key).collect();
-    let mut order: Vec<usize> = (0..tasks.len()).collect();
-    order.sort_by_key(|&i| keys[i]);
-    let mut out: Vec<Option<Run>> = vec![None; tasks.len()];
-    for group in order.chunk_by(|&a, &b| keys[a] == keys[b]) {
-        #[cfg(target_arch = "x86_64")]
-        if is_x86_feature_detected!("avx") {
-            // SAFETY: the CPU has AVX (checked just above).
-            unsafe { run_group_avx::<R>(tasks, group, &mut out) };
-            continue;
-        }
-        run_group::<R>(tasks, group, &mut out);
-    }
-    out.into_iter()
-        .map(|r| r.expect("every task ran"))
-        .collect()
-}
-
-/// [`run_group`] compiled for AVX: four f64 (eight f32) lanes per
-/// instruction instead of two (four). No FMA: the rounding is the same as
-/// without AVX, operation for operation.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx")]
-unsafe fn run_group_avx<R: Real>(tasks: &[Task], group: &[usize], out: &mut [Option<Run>]) {
-    run_group::<R>(tasks, group, out)
-}
-
-/// One group of equal keys, with or without the gravity and damping terms.
-#[inline(always)]
-fn run_group<R: Real>(tasks: &[Task], group: &[usize], out: &mut [Option<Run>]) {
-    let ch = tasks[group[0]].chain;
-    // Long chains in fewer lanes: the state of every lane stays in L1 cache.
-    match (ch.needs_terms(), ch.n_bodies() <= 12) {
-        (false, true) => run_lanes::<R, Silent, false, LANES>(tasks, group, out, &mut Silent),
-        (false, false) => run_lanes::<R, Silent, false, 4>(tasks, group, out, &mut Silent),
-        (true, true) => run_lanes::<R, Silent, true, LANES>(tasks, group, out, &mut Silent),
-        (true, false) => run_lanes::<R, Silent, true, 4>(tasks, group, out, &mut Silent),
-    }
-}
-
-/// Integrate one chain with the steps of `plan`, in precision `R`, reporting
-/// states to `obs`. See the module doc for what is skipped.
-pub fn integrate<R: Real, O: Observer>(
-    ch: &Chain,
-    plan: &StepPlan,
-    lim: &Limits,
-    obs: &mut O,
-) -> Run {
-    let tasks = [Task {
-        chain: ch,
-        plan: *plan,
-        lim: *lim,
-    }];
-    let mut out = vec![None];
-    // Work a scene does not need is not compiled in: an elastic free line
-    // runs a variant without the gravity, damping and drag terms.
-    if ch.needs_terms() {
-        run_lanes::<R, O, true, 1>(&tasks, &[0], &mut out, obs);
-    } else {
-        run_lanes::<R, O, false, 1>(&tasks, &[0], &mut out, obs);
-    }
-    out.pop().flatten().expect("the task ran")
-}
+use super::*;
 
 /// Settings shared by every lane of a group.
-struct Shape {
-    nb: usize,
-    nc: usize,
-    pend: bool,
-    damped: bool,
-    dragged: bool,
-    graded: bool,
-    quarters: u32,
-    track_x: bool,
+pub(super) struct Shape {
+    pub(super) nb: usize,
+    pub(super) nc: usize,
+    pub(super) pend: bool,
+    pub(super) damped: bool,
+    pub(super) dragged: bool,
+    pub(super) graded: bool,
+    pub(super) quarters: u32,
+    pub(super) track_x: bool,
 }
 
 /// The state and constants of `L` runs, lane l of each array for run l.
-struct Lanes<R, const L: usize> {
-    v: [[R; L]; MAX_BALLS],
+pub(super) struct Lanes<R, const L: usize> {
+    pub(super) v: [[R; L]; MAX_BALLS],
     /// Kahan compensation of `v` (f32 only).
-    cv: [[R; L]; MAX_BALLS],
-    d: [[R; L]; MAX_BALLS],
+    pub(super) cv: [[R; L]; MAX_BALLS],
+    pub(super) d: [[R; L]; MAX_BALLS],
     /// Kahan compensation of `d` (f32 only).
-    cd: [[R; L]; MAX_BALLS],
+    pub(super) cd: [[R; L]; MAX_BALLS],
     /// Contact forces (N).
-    f: [[R; L]; MAX_BALLS],
+    pub(super) f: [[R; L]; MAX_BALLS],
     /// Gravity accelerations of the bodies (pendulum; m/s²).
-    acc: [[R; L]; MAX_BALLS],
+    pub(super) acc: [[R; L]; MAX_BALLS],
     /// Hunt–Crossley χ of each contact (s/m), set while it is open.
-    chi: [[R; L]; MAX_BALLS],
+    pub(super) chi: [[R; L]; MAX_BALLS],
     /// Overlaps at the start of the step (onset counting).
-    d0: [[R; L]; MAX_BALLS],
+    pub(super) d0: [[R; L]; MAX_BALLS],
     /// Displacement of body 0 (m) and its compensation.
-    x0: [R; L],
-    cx0: [R; L],
-    inv_m: [[R; L]; MAX_BALLS],
-    gap: [[R; L]; MAX_BALLS],
-    kc: [[R; L]; MAX_BALLS],
-    g: [R; L],
-    inv_l: [R; L],
-    drag: [R; L],
-    a_e: [R; L],
-    v_floor: [R; L],
-    hr: [R; L],
-    h_free: [R; L],
-    h_min: [R; L],
-    t_scale: [R; L],
+    pub(super) x0: [R; L],
+    pub(super) cx0: [R; L],
+    pub(super) inv_m: [[R; L]; MAX_BALLS],
+    pub(super) gap: [[R; L]; MAX_BALLS],
+    pub(super) kc: [[R; L]; MAX_BALLS],
+    pub(super) g: [R; L],
+    pub(super) inv_l: [R; L],
+    pub(super) drag: [R; L],
+    pub(super) a_e: [R; L],
+    pub(super) v_floor: [R; L],
+    pub(super) hr: [R; L],
+    pub(super) h_free: [R; L],
+    pub(super) h_min: [R; L],
+    pub(super) t_scale: [R; L],
     /// The step each lane takes now (0: idle lane).
-    step: [R; L],
-    closed: [bool; L],
+    pub(super) step: [R; L],
+    pub(super) closed: [bool; L],
     /// Largest overlap seen (m), its ratio to the smaller radius, and
     /// 1/radius of each contact.
-    max_ov: [f64; L],
-    max_ratio: [f64; L],
+    pub(super) max_ov: [f64; L],
+    pub(super) max_ratio: [f64; L],
     /// Largest overlap of each contact after a step (m); folded into
     /// `max_ov` and `max_ratio` when the run ends.
-    dmax: [[R; L]; MAX_BALLS],
-    inv_r: [[f64; L]; MAX_BALLS],
+    pub(super) dmax: [[R; L]; MAX_BALLS],
+    pub(super) inv_r: [[f64; L]; MAX_BALLS],
     /// Closed-form impact coefficients of each contact
     /// ([`super::contact::impact_coefficients`]).
-    imp_t: [[R; L]; MAX_BALLS],
-    imp_d: [[R; L]; MAX_BALLS],
-    exact: [bool; L],
+    pub(super) imp_t: [[R; L]; MAX_BALLS],
+    pub(super) imp_d: [[R; L]; MAX_BALLS],
+    pub(super) exact: [bool; L],
     /// Stiffness-cap coefficients of each contact
     /// ([`super::Chain::stiffness_coefficients`]) and the cap's step.
-    stiff_l: [[R; L]; MAX_BALLS],
-    stiff_r: [[R; L]; MAX_BALLS],
-    h_stiff: [R; L],
-    run: [Book; L],
+    pub(super) stiff_l: [[R; L]; MAX_BALLS],
+    pub(super) stiff_r: [[R; L]; MAX_BALLS],
+    pub(super) h_stiff: [R; L],
+    pub(super) run: [Book; L],
 }
 
 /// A lane's bookkeeping, in f64.
 #[derive(Clone, Copy)]
-struct Book {
+pub(super) struct Book {
     /// Index of the task in the lane; `None`: idle.
-    task: Option<usize>,
-    t: f64,
-    steps: u64,
-    contacts: u64,
-    t_first: Option<f64>,
-    t_release: Option<f64>,
+    pub(super) task: Option<usize>,
+    pub(super) t: f64,
+    pub(super) steps: u64,
+    pub(super) contacts: u64,
+    pub(super) t_first: Option<f64>,
+    pub(super) t_release: Option<f64>,
     /// The step lands on a pendulum's duration.
-    last: bool,
-    lim: Limits,
+    pub(super) last: bool,
+    pub(super) lim: Limits,
 }
 
-const IDLE: Book = Book {
+pub(super) const IDLE: Book = Book {
     task: None,
     t: 0.0,
     steps: 0,
@@ -553,7 +102,7 @@ const IDLE: Book = Book {
 
 /// Force of one contact: Hertz, or Hunt–Crossley with closing speed `r`.
 #[inline(always)]
-fn contact<R: Real>(damped: bool, k: R, d: R, chi: R, r: R) -> R {
+pub(super) fn contact<R: Real>(damped: bool, k: R, d: R, chi: R, r: R) -> R {
     if damped {
         contact_force(k, d, chi, r)
     } else {
@@ -562,7 +111,7 @@ fn contact<R: Real>(damped: bool, k: R, d: R, chi: R, r: R) -> R {
 }
 
 impl<R: Real, const L: usize> Lanes<R, L> {
-    fn new() -> Box<Self> {
+    pub(super) fn new() -> Box<Self> {
         let z = [[R::zero(); L]; MAX_BALLS];
         let zl = [R::zero(); L];
         Box::new(Lanes {
@@ -605,7 +154,7 @@ impl<R: Real, const L: usize> Lanes<R, L> {
     }
 
     /// Put run `i` into lane `l`.
-    fn load(&mut self, sh: &Shape, l: usize, i: usize, task: &Task) {
+    pub(super) fn load(&mut self, sh: &Shape, l: usize, i: usize, task: &Task) {
         let (ch, plan) = (task.chain, &task.plan);
         let zero = R::zero();
         for b in 0..sh.nb {
@@ -664,7 +213,7 @@ impl<R: Real, const L: usize> Lanes<R, L> {
     }
 
     /// The running lanes, moved into a kernel of `M` lanes (at least as many).
-    fn narrow<const M: usize>(&self, sh: &Shape) -> Box<Lanes<R, M>> {
+    pub(super) fn narrow<const M: usize>(&self, sh: &Shape) -> Box<Lanes<R, M>> {
         let mut to = Lanes::<R, M>::new();
         let mut m = 0;
         for l in 0..L {
@@ -677,7 +226,13 @@ impl<R: Real, const L: usize> Lanes<R, L> {
     }
 
     /// Move lane l, state and bookkeeping, into lane m of `to`.
-    fn move_lane<const M: usize>(&self, sh: &Shape, l: usize, to: &mut Lanes<R, M>, m: usize) {
+    pub(super) fn move_lane<const M: usize>(
+        &self,
+        sh: &Shape,
+        l: usize,
+        to: &mut Lanes<R, M>,
+        m: usize,
+    ) {
         for b in 0..sh.nb {
             to.v[b][m] = self.v[b][l];
             to.cv[b][m] = self.cv[b][l];
@@ -722,7 +277,7 @@ impl<R: Real, const L: usize> Lanes<R, L> {
     }
 
     /// Lane l takes task `i`, or idles (step 0, state cleared) if there is none.
-    fn next<O: Observer>(
+    pub(super) fn next<O: Observer>(
         &mut self,
         sh: &Shape,
         l: usize,
@@ -751,7 +306,7 @@ impl<R: Real, const L: usize> Lanes<R, L> {
     /// Forces of lane l's contacts (and gravity on a pendulum); whether any
     /// contact is closed.
     #[inline(always)]
-    fn forces_one(&mut self, sh: &Shape, l: usize) -> bool {
+    pub(super) fn forces_one(&mut self, sh: &Shape, l: usize) -> bool {
         let mut closed = false;
         for c in 0..sh.nc {
             let r = self.v[c][l] - self.v[c + 1][l];
@@ -771,7 +326,7 @@ impl<R: Real, const L: usize> Lanes<R, L> {
 
     /// [`Self::forces_one`] on every lane, one loop over the lanes per contact.
     #[inline(always)]
-    fn forces(&mut self, sh: &Shape) {
+    pub(super) fn forces(&mut self, sh: &Shape) {
         let zero = R::zero();
         let mut closed = [false; L];
         for c in 0..sh.nc {
@@ -817,7 +372,7 @@ impl<R: Real, const L: usize> Lanes<R, L> {
     /// by contact b−1; gravity is added after the contact push (as in the
     /// shader's `push`).
     #[inline(always)]
-    fn kick(&mut self, sh: &Shape, hh: &[R; L]) {
+    pub(super) fn kick(&mut self, sh: &Shape, hh: &[R; L]) {
         let nb = sh.nb;
         if sh.dragged {
             for l in 0..L {
@@ -850,7 +405,7 @@ impl<R: Real, const L: usize> Lanes<R, L> {
     /// kick) of sizes `w·step`, the closing half kick of each substep joined
     /// with the opening one of the next ([`kick_weights`]).
     #[inline(always)]
-    fn substeps(&mut self, sh: &Shape, weights: &[f64], kicks: &[f64]) {
+    pub(super) fn substeps(&mut self, sh: &Shape, weights: &[f64], kicks: &[f64]) {
         let times = |c: f64, step: &[R; L]| {
             let c = R::of(c);
             let mut hk = [R::zero(); L];
@@ -887,7 +442,7 @@ impl<R: Real, const L: usize> Lanes<R, L> {
     /// contacts stay open even if a and b moved at the extreme speeds they
     /// pass through, and no other contact closes within t_c. Returns whether
     /// it was taken; the same operations as `exact_impact` in the shader.
-    fn exact_impact(&mut self, sh: &Shape, l: usize, c: usize) -> bool {
+    pub(super) fn exact_impact(&mut self, sh: &Shape, l: usize, c: usize) -> bool {
         let zero = R::zero();
         let (a, b) = (c, c + 1);
         let (va, vb) = (self.v[a][l], self.v[b][l]);
@@ -940,7 +495,13 @@ impl<R: Real, const L: usize> Lanes<R, L> {
     /// taking isolated impacts in closed form on the way. `Some(end)` when
     /// the run is over.
     #[inline(never)]
-    fn fly<O: Observer>(&mut self, sh: &Shape, l: usize, ch: &Chain, obs: &mut O) -> Option<End> {
+    pub(super) fn fly<O: Observer>(
+        &mut self,
+        sh: &Shape,
+        l: usize,
+        ch: &Chain,
+        obs: &mut O,
+    ) -> Option<End> {
         let zero = R::zero();
         let nc = sh.nc;
         loop {
@@ -1006,7 +567,13 @@ impl<R: Real, const L: usize> Lanes<R, L> {
     /// Lane l before its next step: free flight to the next onset (free line),
     /// then the end checks. `Some(end)` when the run is over.
     #[inline(always)]
-    fn ready<O: Observer>(&mut self, sh: &Shape, l: usize, ch: &Chain, obs: &mut O) -> Option<End> {
+    pub(super) fn ready<O: Observer>(
+        &mut self,
+        sh: &Shape,
+        l: usize,
+        ch: &Chain,
+        obs: &mut O,
+    ) -> Option<End> {
         if !self.closed[l] && !sh.pend {
             if let Some(end) = self.fly(sh, l, ch, obs) {
                 return Some(end);
@@ -1029,7 +596,7 @@ impl<R: Real, const L: usize> Lanes<R, L> {
     /// pendulum long in free flight and landing exactly on the duration. Then
     /// the overlaps at its start and, damped, each contact's χ.
     #[inline(always)]
-    fn plan_steps(&mut self, sh: &Shape) {
+    pub(super) fn plan_steps(&mut self, sh: &Shape) {
         let zero = R::zero();
         let mut step = self.hr;
         if sh.pend || sh.graded {
@@ -1108,7 +675,7 @@ impl<R: Real, const L: usize> Lanes<R, L> {
     /// impulse correction of the crossing step ([`kink_impulse_error`]).
     /// Returns the lanes whose velocities went non-finite.
     #[inline(always)]
-    fn account(&mut self, sh: &Shape, weights: &[f64], kicks: &[f64]) -> [bool; L] {
+    pub(super) fn account(&mut self, sh: &Shape, weights: &[f64], kicks: &[f64]) -> [bool; L] {
         let zero = R::zero();
         let mut event = [false; L];
         for c in 0..sh.nc {
@@ -1171,7 +738,7 @@ impl<R: Real, const L: usize> Lanes<R, L> {
     }
 
     /// The outcome of lane l's run, which ended with `end`.
-    fn finish(&self, sh: &Shape, l: usize, end: End, ch: &Chain) -> Run {
+    pub(super) fn finish(&self, sh: &Shape, l: usize, end: End, ch: &Chain) -> Run {
         let book = &self.run[l];
         let v: Vec<f64> = (0..sh.nb).map(|b| self.v[b][l].to64()).collect();
         let overlap: Vec<f64> = (0..sh.nc).map(|c| self.d[c][l].to64()).collect();
@@ -1213,7 +780,7 @@ impl<R: Real, const L: usize> Lanes<R, L> {
 
 /// Report lane l's state to the observer (a traced run has one lane).
 #[inline(always)]
-fn observe<R: Real, O: Observer, const L: usize>(
+pub(super) fn observe<R: Real, O: Observer, const L: usize>(
     sh: &Shape,
     s: &Lanes<R, L>,
     l: usize,
@@ -1226,130 +793,4 @@ fn observe<R: Real, O: Observer, const L: usize>(
         let v: Vec<f64> = (0..sh.nb).map(|b| s.v[b][l].to64()).collect();
         obs.state(s.run[l].t, &x, &v);
     }
-}
-
-/// Run the tasks of one group (`group`: indices into `tasks`, equal keys),
-/// `L` lanes at a time: a lane whose run ends takes the next task.
-#[inline(always)]
-fn run_lanes<R: Real, O: Observer, const TERMS: bool, const L: usize>(
-    tasks: &[Task],
-    group: &[usize],
-    out: &mut [Option<Run>],
-    obs: &mut O,
-) {
-    let first = &tasks[group[0]];
-    let ch0 = first.chain;
-    let nb = ch0.n_bodies();
-    let pend = TERMS && ch0.is_pendulum();
-    let sh = Shape {
-        nb,
-        nc: nb - 1,
-        pend,
-        damped: TERMS && ch0.damping_a > 0.0,
-        dragged: TERMS && ch0.air_drag > 0.0,
-        graded: first.plan.graded,
-        quarters: first.plan.grade_quarters,
-        // Body 0's displacement matters to gravity and to an observer; a free
-        // line in a sweep does without (its displacements are not reported).
-        track_x: pend || O::ACTIVE,
-    };
-    let weights = first.plan.weights;
-    let kicks = kick_weights(weights);
-    let kicks = &kicks[..];
-    let mut s = Lanes::<R, L>::new();
-    let mut queue = group.iter().copied().peekable();
-    for l in 0..L {
-        if let Some(i) = queue.next() {
-            s.load(&sh, l, i, &tasks[i]);
-            observe(&sh, &s, l, tasks[i].chain, obs);
-        }
-    }
-    // The last runs of a group go on in narrower kernels: a long run alone
-    // in wide lanes would pay for all of them.
-    if L > 8 {
-        drive(&mut s, &sh, weights, kicks, &mut queue, 8, tasks, out, obs);
-        let mut t = s.narrow::<8>(&sh);
-        drive(&mut t, &sh, weights, kicks, &mut queue, 2, tasks, out, obs);
-        let mut u = t.narrow::<2>(&sh);
-        drive(&mut u, &sh, weights, kicks, &mut queue, 0, tasks, out, obs);
-    } else if L > 2 {
-        drive(&mut s, &sh, weights, kicks, &mut queue, 2, tasks, out, obs);
-        let mut u = s.narrow::<2>(&sh);
-        drive(&mut u, &sh, weights, kicks, &mut queue, 0, tasks, out, obs);
-    } else {
-        drive(&mut s, &sh, weights, kicks, &mut queue, 0, tasks, out, obs);
-    }
-}
-
-/// Step the lanes until every run is over, refilling ended lanes from
-/// `queue`; return early once the queue is empty and at most `tail` lanes
-/// are still running.
-#[inline(always)]
-#[allow(clippy::too_many_arguments)]
-fn drive<R: Real, O: Observer, const L: usize>(
-    s: &mut Lanes<R, L>,
-    sh: &Shape,
-    weights: &[f64],
-    kicks: &[f64],
-    queue: &mut std::iter::Peekable<impl Iterator<Item = usize>>,
-    tail: usize,
-    tasks: &[Task],
-    out: &mut [Option<Run>],
-    obs: &mut O,
-) {
-    loop {
-        if queue.peek().is_none() && s.run.iter().filter(|b| b.task.is_some()).count() <= tail {
-            return;
-        }
-        let mut busy = false;
-        for l in 0..L {
-            while let Some(i) = s.run[l].task {
-                let Some(end) = s.ready(sh, l, tasks[i].chain, obs) else {
-                    busy = true;
-                    break;
-                };
-                out[i] = Some(s.finish(sh, l, end, tasks[i].chain));
-                s.next(sh, l, queue.next(), tasks, obs);
-            }
-        }
-        if !busy {
-            return;
-        }
-        s.plan_steps(sh);
-        s.substeps(sh, weights, kicks);
-        let bad = s.account(sh, weights, kicks);
-        for l in 0..L {
-            let Some(i) = s.run[l].task else { continue };
-            observe(sh, s, l, tasks[i].chain, obs);
-            if bad[l] {
-                out[i] = Some(s.finish(sh, l, End::NonFinite, tasks[i].chain));
-                s.next(sh, l, queue.next(), tasks, obs);
-            }
-        }
-    }
-}
-
-/// The impulse per second of step that a step misses on a contact whose
-/// overlap crossed zero during it, from d0 to d1: the exact integral of
-/// k·δ⁺^{3/2} along a straight line from d0 to d1, (2/5)·k·(d1⁺^{5/2} −
-/// d0⁺^{5/2})/(d1 − d0), minus the composition's quadrature of it (the force
-/// at each drift position P_i, weighted by the kick there, [`kick_weights`]).
-/// Near the kink the contact's own force is tiny and δ is straight to high
-/// order, so this is the leading error of the crossing step, ∝ s^{5/2}; the
-/// same operations as `kink_impulse_error` in the shader.
-#[inline(always)]
-fn kink_impulse_error<R: Real>(k: R, d0: R, d1: R, weights: &[f64], kicks: &[f64]) -> R {
-    let zero = R::zero();
-    let dd = d1 - d0;
-    let p0 = hi(d0, zero);
-    let p1 = hi(d1, zero);
-    let exact = R::of(0.4) * (p1 * p1 * p1.sqrt() - p0 * p0 * p0.sqrt()) / dd;
-    let mut pos = zero;
-    let mut quad = R::of(kicks[0]) * (p0 * p0.sqrt());
-    for (&w, &kw) in weights.iter().zip(&kicks[1..]) {
-        pos = pos + R::of(w);
-        let p = hi(d0 + pos * dd, zero);
-        quad = quad + R::of(kw) * (p * p.sqrt());
-    }
-    k * (exact - quad)
 }

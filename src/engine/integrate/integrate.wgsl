@@ -1,4 +1,4 @@
-// The WGSL twin of src/engine/integrate.rs: same state (contact overlaps δ,
+// The WGSL twin of src/engine/integrate/ (kernels.rs, lanes.rs): same state (contact overlaps δ,
 // body velocities, body 0's displacement), same function names, same order of
 // operations, so the GPU gives the CPU's answers. One invocation integrates one
 // scene. The contact law (hertz_force, contact_force) twins src/engine/contact.rs.
