@@ -16,59 +16,110 @@ pub(super) struct Shape {
     pub(super) track_x: bool,
 }
 
-/// The state and constants of `L` runs, lane l of each array for run l.
-pub(super) struct Lanes<R, const L: usize> {
-    pub(super) v: [[R; L]; MAX_BALLS],
-    /// Kahan compensation of `v` (f32 only).
-    pub(super) cv: [[R; L]; MAX_BALLS],
-    pub(super) d: [[R; L]; MAX_BALLS],
-    /// Kahan compensation of `d` (f32 only).
-    pub(super) cd: [[R; L]; MAX_BALLS],
-    /// Contact forces (N).
-    pub(super) f: [[R; L]; MAX_BALLS],
-    /// Gravity accelerations of the bodies (pendulum; m/s²).
-    pub(super) acc: [[R; L]; MAX_BALLS],
-    /// Hunt–Crossley χ of each contact (s/m), set while it is open.
-    pub(super) chi: [[R; L]; MAX_BALLS],
-    /// Overlaps at the start of the step (onset counting).
-    pub(super) d0: [[R; L]; MAX_BALLS],
-    /// Displacement of body 0 (m) and its compensation.
-    pub(super) x0: [R; L],
-    pub(super) cx0: [R; L],
-    pub(super) inv_m: [[R; L]; MAX_BALLS],
-    pub(super) gap: [[R; L]; MAX_BALLS],
-    pub(super) kc: [[R; L]; MAX_BALLS],
-    pub(super) g: [R; L],
-    pub(super) inv_l: [R; L],
-    pub(super) drag: [R; L],
-    pub(super) a_e: [R; L],
-    pub(super) v_floor: [R; L],
-    pub(super) hr: [R; L],
-    pub(super) h_free: [R; L],
-    pub(super) h_min: [R; L],
-    pub(super) t_scale: [R; L],
-    /// The step each lane takes now (0: idle lane).
-    pub(super) step: [R; L],
-    pub(super) closed: [bool; L],
-    /// Largest overlap seen (m), its ratio to the smaller radius, and
-    /// 1/radius of each contact.
-    pub(super) max_ov: [f64; L],
-    pub(super) max_ratio: [f64; L],
-    /// Largest overlap of each contact after a step (m); folded into
-    /// `max_ov` and `max_ratio` when the run ends.
-    pub(super) dmax: [[R; L]; MAX_BALLS],
-    pub(super) inv_r: [[f64; L]; MAX_BALLS],
-    /// Closed-form impact coefficients of each contact
-    /// ([`super::contact::impact_coefficients`]).
-    pub(super) imp_t: [[R; L]; MAX_BALLS],
-    pub(super) imp_d: [[R; L]; MAX_BALLS],
-    pub(super) exact: [bool; L],
-    /// Stiffness-cap coefficients of each contact
-    /// ([`super::Chain::stiffness_coefficients`]) and the cap's step.
-    pub(super) stiff_l: [[R; L]; MAX_BALLS],
-    pub(super) stiff_r: [[R; L]; MAX_BALLS],
-    pub(super) h_stiff: [R; L],
-    pub(super) run: [Book; L],
+/// Declares the lane state once: the struct, `new` (every lane idle) and
+/// `move_lane` (one lane's state to another set of lanes) come from one list
+/// of fields, per body, per contact and per lane, each with its initial value.
+macro_rules! lane_state {
+    (
+        per_body { $($(#[doc = $bd:literal])* $b:ident: $bt:ty = $bz:expr,)* }
+        per_contact { $($(#[doc = $cd:literal])* $c:ident: $ct:ty = $cz:expr,)* }
+        per_lane { $($(#[doc = $ld:literal])* $s:ident: $st:ty = $sz:expr,)* }
+    ) => {
+        /// The state and constants of `L` runs, lane l of each array for run l.
+        pub(super) struct Lanes<R, const L: usize> {
+            $($(#[doc = $bd])* pub(super) $b: [[$bt; L]; MAX_BALLS],)*
+            $($(#[doc = $cd])* pub(super) $c: [[$ct; L]; MAX_BALLS],)*
+            $($(#[doc = $ld])* pub(super) $s: [$st; L],)*
+        }
+
+        impl<R: Real, const L: usize> Lanes<R, L> {
+            pub(super) fn new() -> Box<Self> {
+                Box::new(Lanes {
+                    $($b: [[$bz; L]; MAX_BALLS],)*
+                    $($c: [[$cz; L]; MAX_BALLS],)*
+                    $($s: [$sz; L],)*
+                })
+            }
+
+            /// Move lane l, state and bookkeeping, into lane m of `to`.
+            pub(super) fn move_lane<const M: usize>(
+                &self,
+                sh: &Shape,
+                l: usize,
+                to: &mut Lanes<R, M>,
+                m: usize,
+            ) {
+                for b in 0..sh.nb {
+                    $(to.$b[b][m] = self.$b[b][l];)*
+                }
+                for c in 0..sh.nc {
+                    $(to.$c[c][m] = self.$c[c][l];)*
+                }
+                $(to.$s[m] = self.$s[l];)*
+            }
+        }
+    };
+}
+
+lane_state! {
+    per_body {
+        v: R = R::zero(),
+        /// Kahan compensation of `v` (f32 only).
+        cv: R = R::zero(),
+        /// Gravity accelerations of the bodies (pendulum; m/s²).
+        acc: R = R::zero(),
+        inv_m: R = R::zero(),
+    }
+    per_contact {
+        d: R = R::zero(),
+        /// Kahan compensation of `d` (f32 only).
+        cd: R = R::zero(),
+        /// Contact forces (N).
+        f: R = R::zero(),
+        /// Hunt–Crossley χ of each contact (s/m), set while it is open.
+        chi: R = R::zero(),
+        /// Overlaps at the start of the step (onset counting).
+        d0: R = R::zero(),
+        gap: R = R::zero(),
+        kc: R = R::zero(),
+        /// 1/radius of the smaller ball of each contact.
+        inv_r: f64 = 0.0,
+        /// Largest overlap of each contact after a step (m); folded into
+        /// `max_ov` and `max_ratio` when the run ends.
+        dmax: R = R::zero(),
+        /// Closed-form impact coefficients of each contact
+        /// ([`super::contact::impact_coefficients`]).
+        imp_t: R = R::zero(),
+        imp_d: R = R::zero(),
+        /// Stiffness-cap coefficients of each contact
+        /// ([`super::Chain::stiffness_coefficients`]).
+        stiff_l: R = R::zero(),
+        stiff_r: R = R::zero(),
+    }
+    per_lane {
+        /// Displacement of body 0 (m) and its compensation.
+        x0: R = R::zero(),
+        cx0: R = R::zero(),
+        g: R = R::zero(),
+        inv_l: R = R::zero(),
+        drag: R = R::zero(),
+        a_e: R = R::zero(),
+        v_floor: R = R::zero(),
+        hr: R = R::zero(),
+        h_free: R = R::zero(),
+        h_min: R = R::zero(),
+        t_scale: R = R::zero(),
+        /// The step each lane takes now (0: idle lane).
+        step: R = R::zero(),
+        closed: bool = false,
+        /// Largest overlap seen (m) and its ratio to the smaller radius.
+        max_ov: f64 = 0.0,
+        max_ratio: f64 = 0.0,
+        exact: bool = false,
+        /// The stiffness cap's step.
+        h_stiff: R = R::zero(),
+        run: Book = IDLE,
+    }
 }
 
 /// A lane's bookkeeping, in f64.
@@ -111,48 +162,6 @@ pub(super) fn contact<R: Real>(damped: bool, k: R, d: R, chi: R, r: R) -> R {
 }
 
 impl<R: Real, const L: usize> Lanes<R, L> {
-    pub(super) fn new() -> Box<Self> {
-        let z = [[R::zero(); L]; MAX_BALLS];
-        let zl = [R::zero(); L];
-        Box::new(Lanes {
-            v: z,
-            cv: z,
-            d: z,
-            cd: z,
-            f: z,
-            acc: z,
-            chi: z,
-            d0: z,
-            x0: zl,
-            cx0: zl,
-            inv_m: z,
-            gap: z,
-            kc: z,
-            g: zl,
-            inv_l: zl,
-            drag: zl,
-            a_e: zl,
-            v_floor: zl,
-            hr: zl,
-            h_free: zl,
-            h_min: zl,
-            t_scale: zl,
-            step: zl,
-            closed: [false; L],
-            max_ov: [0.0; L],
-            max_ratio: [0.0; L],
-            dmax: z,
-            inv_r: [[0.0; L]; MAX_BALLS],
-            imp_t: z,
-            imp_d: z,
-            exact: [false; L],
-            stiff_l: z,
-            stiff_r: z,
-            h_stiff: zl,
-            run: [IDLE; L],
-        })
-    }
-
     /// Put run `i` into lane `l`.
     pub(super) fn load(&mut self, sh: &Shape, l: usize, i: usize, task: &Task) {
         let (ch, plan) = (task.chain, &task.plan);
@@ -223,57 +232,6 @@ impl<R: Real, const L: usize> Lanes<R, L> {
             }
         }
         to
-    }
-
-    /// Move lane l, state and bookkeeping, into lane m of `to`.
-    pub(super) fn move_lane<const M: usize>(
-        &self,
-        sh: &Shape,
-        l: usize,
-        to: &mut Lanes<R, M>,
-        m: usize,
-    ) {
-        for b in 0..sh.nb {
-            to.v[b][m] = self.v[b][l];
-            to.cv[b][m] = self.cv[b][l];
-            to.acc[b][m] = self.acc[b][l];
-            to.inv_m[b][m] = self.inv_m[b][l];
-        }
-        for c in 0..sh.nc {
-            to.d[c][m] = self.d[c][l];
-            to.cd[c][m] = self.cd[c][l];
-            to.f[c][m] = self.f[c][l];
-            to.chi[c][m] = self.chi[c][l];
-            to.d0[c][m] = self.d0[c][l];
-            to.gap[c][m] = self.gap[c][l];
-            to.kc[c][m] = self.kc[c][l];
-            to.inv_r[c][m] = self.inv_r[c][l];
-            to.imp_t[c][m] = self.imp_t[c][l];
-            to.imp_d[c][m] = self.imp_d[c][l];
-            to.stiff_l[c][m] = self.stiff_l[c][l];
-            to.stiff_r[c][m] = self.stiff_r[c][l];
-        }
-        to.h_stiff[m] = self.h_stiff[l];
-        to.x0[m] = self.x0[l];
-        to.cx0[m] = self.cx0[l];
-        to.g[m] = self.g[l];
-        to.inv_l[m] = self.inv_l[l];
-        to.drag[m] = self.drag[l];
-        to.a_e[m] = self.a_e[l];
-        to.v_floor[m] = self.v_floor[l];
-        to.hr[m] = self.hr[l];
-        to.h_free[m] = self.h_free[l];
-        to.h_min[m] = self.h_min[l];
-        to.t_scale[m] = self.t_scale[l];
-        to.step[m] = self.step[l];
-        to.closed[m] = self.closed[l];
-        to.exact[m] = self.exact[l];
-        to.max_ov[m] = self.max_ov[l];
-        to.max_ratio[m] = self.max_ratio[l];
-        for c in 0..sh.nc {
-            to.dmax[c][m] = self.dmax[c][l];
-        }
-        to.run[m] = self.run[l];
     }
 
     /// Lane l takes task `i`, or idles (step 0, state cleared) if there is none.
