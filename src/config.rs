@@ -8,13 +8,13 @@
 //!   unless they agree (a flag never silently replaces an axis);
 //! - resource limits: threads, the tolerance's round-off floor per precision.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
-use crate::cli::{flag, parse_shard, BackendChoice, SweepArgs};
-use crate::engine::{Overrides, Solver};
+use crate::cli::{flag, parse_shard, BackendChoice, Format, SolverFlags, SweepArgs};
+use crate::engine::{simulate_chain, Chain, Model, Overrides, Silent, Solver};
 use crate::error::InputError;
 use crate::output::guard;
-use crate::scene::Precision;
+use crate::scene::{Precision, Scene};
 use crate::sweep::Sweep;
 
 /// Files a sweep writes beside its output `FILE`.
@@ -84,6 +84,99 @@ impl SweepConfig {
             error_estimate: a.error_estimate,
             overrides,
             precision,
+        })
+    }
+}
+
+/// Largest trace `cradle run --trace` writes (bytes); refused before running.
+pub const MAX_TRACE_BYTES: f64 = 1e9;
+/// Characters of one trace number (`-1.2345678901234567e-5,`).
+const TRACE_BYTES_PER_NUMBER: f64 = 24.0;
+
+/// A checked `cradle run`.
+pub struct RunConfig {
+    /// The scene as named on the command line (a file or a built-in).
+    pub name: String,
+    pub scene: Scene,
+    pub chain: Chain,
+    pub solver: Solver,
+    pub format: Format,
+    /// Where the trace goes (a checked output path) and its row spacing (s).
+    pub trace: Option<(PathBuf, f64)>,
+}
+
+impl RunConfig {
+    pub fn from_args(
+        name: &str,
+        format: Format,
+        trace: Option<&Path>,
+        trace_dt: Option<f64>,
+        flags: &SolverFlags,
+    ) -> anyhow::Result<RunConfig> {
+        let scene = Scene::load(name)?;
+        let overrides = flags.overrides()?;
+        Solver::check_flags_against(&scene, &overrides, name)?;
+        let solver = Solver::resolve(&scene, &overrides)?;
+        let chain = Chain::from_scene(&scene)
+            .map_err(|e| anyhow::Error::new(e).context(format!("scene {name}")))?;
+        if let Some(why) = solver.model.unsupported(&chain) {
+            return Err(flag("--model", solver.model.name(), &why).into());
+        }
+        let trace = match trace {
+            None => None,
+            Some(path) => {
+                if solver.model != Model::Hertz {
+                    return Err(flag(
+                        "--trace",
+                        solver.model.name(),
+                        "a trajectory of the hertz model only (the others are instantaneous)",
+                    )
+                    .into());
+                }
+                let every = match trace_dt {
+                    Some(d) if d.is_finite() && d > 0.0 => d,
+                    Some(d) => {
+                        return Err(flag("--trace-dt", &d.to_string(), "a time > 0 (s)").into())
+                    }
+                    // A pendulum: 400 rows per swing; a free line: 20 per contact.
+                    None if chain.is_pendulum() => std::f64::consts::TAU / chain.omega() / 400.0,
+                    None => chain.time_scale().map_or(1e-6, |tc| tc / 20.0),
+                };
+                let inputs: Vec<PathBuf> = Path::new(name)
+                    .exists()
+                    .then(|| name.into())
+                    .into_iter()
+                    .collect();
+                let path = guard::output("--trace", path, &inputs, &[])?;
+                // The trace's size, known before it is written: the run's end
+                // time from a silent run (one scene: milliseconds).
+                let t_end = simulate_chain(&chain, &solver, &mut Silent).t_end;
+                let row_bytes = (1 + 2 * chain.n_balls) as f64 * TRACE_BYTES_PER_NUMBER;
+                let bytes = (t_end / every + 2.0) * row_bytes;
+                if bytes.is_nan() || bytes > MAX_TRACE_BYTES {
+                    return Err(flag(
+                        "--trace-dt",
+                        &format!("{every:e}"),
+                        &format!(
+                            "the run lasts {t_end:.4e} s: {:.0} rows, about {:.1} GB of trace (at most {:.0} GB); use --trace-dt ≥ {:.1e}",
+                            t_end / every,
+                            bytes / 1e9,
+                            MAX_TRACE_BYTES / 1e9,
+                            t_end * row_bytes / (MAX_TRACE_BYTES - 2.0 * row_bytes)
+                        ),
+                    )
+                    .into());
+                }
+                Some((path, every))
+            }
+        };
+        Ok(RunConfig {
+            name: name.to_string(),
+            scene,
+            chain,
+            solver,
+            format,
+            trace,
         })
     }
 }

@@ -12,21 +12,16 @@ use hertz_cradle::backend::cpu::Cpu;
 use hertz_cradle::backend::gpu::{find_adapter, Gpu, Want};
 use hertz_cradle::backend::Backend;
 use hertz_cradle::cli::{flag, BackendChoice, Cli, Command, Format};
-use hertz_cradle::config::SweepConfig;
-use hertz_cradle::engine::{simulate_chain, Chain, Model, Silent, Solver};
+use hertz_cradle::config::{RunConfig, SweepConfig};
+use hertz_cradle::engine::{simulate_chain, Silent, Solver};
 use hertz_cradle::output::guard;
 use hertz_cradle::output::lock::OutputLock;
 use hertz_cradle::output::merge::merge;
 use hertz_cradle::output::{row, trace::TraceWriter};
 use hertz_cradle::plot;
-use hertz_cradle::scene::{builtin, Precision, Scene};
+use hertz_cradle::scene::{builtin, Precision};
 use hertz_cradle::sweep::{run::Options, Sweep};
 use hertz_cradle::InputError;
-
-/// Largest trace `cradle run --trace` writes (bytes); refused before running.
-const MAX_TRACE_BYTES: f64 = 1e9;
-/// Characters of one trace number (`-1.2345678901234567e-5,`).
-const TRACE_BYTES_PER_NUMBER: f64 = 24.0;
 
 fn main() -> ExitCode {
     hertz_cradle::backend::gpu::quiet_mesa_without_session();
@@ -190,10 +185,15 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             cradle,
             solver,
         } => {
-            // Check everything now, not on the cluster.
+            // Check everything now, not on the cluster: flags against the
+            // file, the merged output's path, the solver.
             let spec = Sweep::load(&sweep)?;
             let overrides = solver.overrides()?;
+            spec.check_overrides(&overrides)?;
             Solver::resolve(&spec.base, &overrides)?;
+            if let Some(o) = &out {
+                guard::output("--out", o, &spec.inputs, &[".partial", ".json", ".lock"])?;
+            }
             if shards == 0 || shards > spec.total {
                 return Err(flag(
                     "--shards",
@@ -245,78 +245,29 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             trace_dt,
             solver,
         } => {
-            let sc = Scene::load(&scene)?;
-            let solver = Solver::resolve(&sc, &solver.overrides()?)?;
-            let chain = Chain::from_scene(&sc)
-                .map_err(|e| anyhow::Error::new(e).context(format!("scene {scene}")))?;
-            if let Some(why) = solver.model.unsupported(&chain) {
-                return Err(flag("--model", solver.model.name(), &why).into());
-            }
-            if trace.is_some() && solver.model != Model::Hertz {
-                return Err(flag(
-                    "--trace",
-                    solver.model.name(),
-                    "a trajectory of the hertz model only (the others are instantaneous)",
-                )
-                .into());
-            }
-            let outcome = match trace {
-                None => simulate_chain(&chain, &solver, &mut Silent),
-                Some(path) => {
-                    let every = match trace_dt {
-                        Some(d) if d.is_finite() && d > 0.0 => d,
-                        Some(d) => {
-                            return Err(flag("--trace-dt", &d.to_string(), "a time > 0 (s)").into())
-                        }
-                        // A pendulum: 400 rows per swing; a free line: 20 per contact.
-                        None if chain.is_pendulum() => {
-                            std::f64::consts::TAU / chain.omega() / 400.0
-                        }
-                        None => chain.time_scale().map_or(1e-6, |tc| tc / 20.0),
-                    };
-                    let inputs: Vec<std::path::PathBuf> = std::path::Path::new(&scene)
-                        .exists()
-                        .then(|| scene.clone().into())
-                        .into_iter()
-                        .collect();
-                    let path = guard::output("--trace", &path, &inputs, &[])?;
-                    // The trace's size, known before it is written: the run's
-                    // end time from a silent run (one scene: milliseconds).
-                    let t_end = simulate_chain(&chain, &solver, &mut Silent).t_end;
-                    let row_bytes = (1 + 2 * chain.n_balls) as f64 * TRACE_BYTES_PER_NUMBER;
-                    let bytes = (t_end / every + 2.0) * row_bytes;
-                    if bytes.is_nan() || bytes > MAX_TRACE_BYTES {
-                        return Err(flag(
-                            "--trace-dt",
-                            &format!("{every:e}"),
-                            &format!(
-                                "the run lasts {t_end:.4e} s: {:.0} rows, about {:.1} GB of trace (at most {:.0} GB); use --trace-dt ≥ {:.1e}",
-                                t_end / every,
-                                bytes / 1e9,
-                                MAX_TRACE_BYTES / 1e9,
-                                t_end * row_bytes / (MAX_TRACE_BYTES - 2.0 * row_bytes)
-                            ),
-                        )
-                        .into());
-                    }
-                    let file = File::create(&path)
+            let cfg = RunConfig::from_args(&scene, format, trace.as_deref(), trace_dt, &solver)?;
+            let (chain, solver) = (&cfg.chain, &cfg.solver);
+            let outcome = match &cfg.trace {
+                None => simulate_chain(chain, solver, &mut Silent),
+                Some((path, every)) => {
+                    let file = File::create(path)
                         .with_context(|| format!("cannot create trace file {}", path.display()))?;
-                    let mut tw = TraceWriter::new(BufWriter::new(file), &chain, every)?;
-                    let o = simulate_chain(&chain, &solver, &mut tw);
+                    let mut tw = TraceWriter::new(BufWriter::new(file), chain, *every)?;
+                    let o = simulate_chain(chain, solver, &mut tw);
                     tw.finish()
                         .with_context(|| format!("writing {}", path.display()))?;
                     o
                 }
             };
             let mut out = std::io::stdout().lock();
-            match format {
+            match cfg.format {
                 Format::Table => write!(
                     out,
                     "{}",
                     row::table(
-                        &scene,
+                        &cfg.name,
                         chain.v_in(),
-                        &sc.velocity,
+                        &cfg.scene.velocity,
                         &outcome,
                         chain.is_pendulum()
                     )
@@ -324,7 +275,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 Format::Csv => {
                     let mut w = csv::Writer::from_writer(&mut out);
                     let shape = row::Shape {
-                        width: sc.n,
+                        width: cfg.scene.n,
                         pendulum: chain.is_pendulum(),
                     };
                     w.write_record(row::header(&[], shape))?;

@@ -691,3 +691,47 @@ fn no_desktop_session_no_spurious_error_lines() {
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(!stderr(&o).contains("XDG_RUNTIME_DIR"), "{}", stderr(&o));
 }
+
+#[test]
+fn run_and_slurm_apply_the_same_rules_as_sweep() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let scene = d.join("s.toml");
+    fs::write(
+        &scene,
+        "balls = 3\nvelocity = [1.0, 0, 0]\n[solver]\nmethod = \"yoshida6\"\n",
+    )
+    .unwrap();
+    refused(&["run", s(&scene), "--method", "verlet"], "[solver] method");
+    ok(&["run", s(&scene), "--method", "yoshida6"]);
+    let sw = write_sweep(d, 2, 2);
+    refused(
+        &[
+            "slurm",
+            s(&sw),
+            "--shards",
+            "2",
+            "--out",
+            s(&sw),
+            "--dir",
+            s(&d.join("sl")),
+        ],
+        "is an input",
+    );
+    let tol = d.join("tol.toml");
+    fs::write(&tol, "[scene]\nballs = 3\nvelocity = [1.0, 0, 0]\n[[axis]]\nparam = \"tolerance\"\nvalues = [1e-6, 1e-7]\n").unwrap();
+    refused(
+        &[
+            "slurm",
+            s(&tol),
+            "--shards",
+            "2",
+            "--tolerance",
+            "1e-8",
+            "--dir",
+            s(&d.join("sl")),
+        ],
+        "axis `tolerance`",
+    );
+    assert!(!d.join("sl").exists(), "nothing written for a refused plan");
+}
