@@ -35,7 +35,7 @@ fn s(p: &Path) -> &str {
     p.to_str().unwrap()
 }
 
-fn run(args: &[&str]) -> Output {
+fn run<A: AsRef<std::ffi::OsStr>>(args: &[A]) -> Output {
     cradle().args(args).output().unwrap()
 }
 
@@ -44,12 +44,24 @@ fn stderr(o: &Output) -> String {
 }
 
 /// Expect exit 2 (bad input) with `needle` in the message.
-fn refused(args: &[&str], needle: &str) -> String {
+fn refused<A: AsRef<std::ffi::OsStr> + std::fmt::Debug>(args: &[A], needle: &str) -> String {
     let o = run(args);
     let e = stderr(&o);
     assert_eq!(o.status.code(), Some(2), "{args:?}: {e}");
     assert!(e.contains(needle), "{args:?}: {e:?} lacks {needle:?}");
     e
+}
+
+/// `cradle sweep SWEEP --out OUT --backend cpu EXTRA...`
+fn on_cpu<'a>(sw: &'a Path, out: &'a Path, extra: &[&'a str]) -> Vec<&'a str> {
+    let mut a = vec!["sweep", s(sw), "--out", s(out), "--backend", "cpu"];
+    a.extend_from_slice(extra);
+    a
+}
+
+/// A sidecar's JSON.
+fn sidecar(path: &Path) -> serde_json::Value {
+    serde_json::from_slice(&fs::read(path).unwrap()).unwrap()
 }
 
 fn ok(args: &[&str]) {
@@ -134,7 +146,7 @@ fn hostile_output_paths_are_refused_before_any_work_and_nothing_is_replaced() {
     refused(&["sweep", s(&sw), "--out", s(&link_in)], "is an input");
     let link = d.join("link.csv");
     std::os::unix::fs::symlink("target.csv", &link).unwrap();
-    ok(&["sweep", s(&sw), "--out", s(&link), "--backend", "cpu"]);
+    ok(&on_cpu(&sw, &link, &[]));
     assert!(fs::symlink_metadata(&link)
         .unwrap()
         .file_type()
@@ -180,7 +192,7 @@ fn a_second_writer_is_refused_while_the_first_finishes_intact() {
     let d = dir.path();
     let sw = write_sweep(d, 40, 1000); // 40,000 scenes: seconds on one thread
     let (out, reference) = (d.join("o.csv"), d.join("ref.csv"));
-    ok(&["sweep", s(&sw), "--out", s(&reference), "--backend", "cpu"]);
+    ok(&on_cpu(&sw, &reference, &[]));
     let mut first = Std::new(assert_cmd::cargo::cargo_bin("cradle"))
         .args([
             "sweep",
@@ -221,7 +233,7 @@ fn disk_full_at_random_points_loses_nothing_and_resume_completes_the_same_bytes(
     let d = dir.path();
     let sw = write_sweep(d, 10, 1000); // 10,000 scenes: 5 batches of rows
     let reference = d.join("ref.csv");
-    ok(&["sweep", s(&sw), "--out", s(&reference), "--backend", "cpu"]);
+    ok(&on_cpu(&sw, &reference, &[]));
     let want = fs::read(&reference).unwrap();
     for (i, k) in points(7, 3, 1, 6).into_iter().enumerate() {
         let out = d.join(format!("o{i}.csv"));
@@ -241,15 +253,7 @@ fn disk_full_at_random_points_loses_nothing_and_resume_completes_the_same_bytes(
         // What reached the file is a prefix of the right answer.
         let part = fs::read(d.join(format!("o{i}.csv.partial"))).unwrap();
         assert!(want.starts_with(&part) && part.len() < want.len());
-        ok(&[
-            "sweep",
-            s(&sw),
-            "--out",
-            s(&out),
-            "--backend",
-            "cpu",
-            "--resume",
-        ]);
+        ok(&on_cpu(&sw, &out, &["--resume"]));
         assert_eq!(fs::read(&out).unwrap(), want, "failpoint append:{k}");
     }
     // The sidecar cannot be written: no CSV is published, no torn sidecar.
@@ -261,18 +265,9 @@ fn disk_full_at_random_points_loses_nothing_and_resume_completes_the_same_bytes(
         .unwrap();
     assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
     assert!(!out.exists() && !d.join("side.csv.json").exists());
-    ok(&[
-        "sweep",
-        s(&sw),
-        "--out",
-        s(&out),
-        "--backend",
-        "cpu",
-        "--resume",
-    ]);
+    ok(&on_cpu(&sw, &out, &["--resume"]));
     assert_eq!(fs::read(&out).unwrap(), want);
-    let meta: serde_json::Value =
-        serde_json::from_slice(&fs::read(d.join("side.csv.json")).unwrap()).unwrap();
+    let meta = sidecar(&d.join("side.csv.json"));
     assert_eq!(
         meta["scenes_ok"].as_u64().unwrap() + meta["scenes_not_ok"].as_u64().unwrap(),
         10_000
@@ -285,7 +280,7 @@ fn kills_at_random_points_then_resume_give_the_same_bytes_and_a_whole_sidecar() 
     let d = dir.path();
     let sw = write_sweep(d, 40, 200);
     let reference = d.join("ref.csv");
-    ok(&["sweep", s(&sw), "--out", s(&reference), "--backend", "cpu"]);
+    ok(&on_cpu(&sw, &reference, &[]));
     let want = fs::read(&reference).unwrap();
     let out = d.join("o.csv");
     let partial = d.join("o.csv.partial");
@@ -325,25 +320,15 @@ fn kills_at_random_points_then_resume_give_the_same_bytes_and_a_whole_sidecar() 
         assert!(want.starts_with(&part[..part.iter().rposition(|&b| b == b'\n').unwrap() + 1]));
     }
     assert!(kills > 0);
-    ok(&[
-        "sweep",
-        s(&sw),
-        "--out",
-        s(&out),
-        "--backend",
-        "cpu",
-        "--resume",
-    ]);
+    ok(&on_cpu(&sw, &out, &["--resume"]));
     assert_eq!(fs::read(&out).unwrap(), want);
-    let meta: serde_json::Value =
-        serde_json::from_slice(&fs::read(d.join("o.csv.json")).unwrap()).unwrap();
+    let meta = sidecar(&d.join("o.csv.json"));
     let rows = meta["scenes_ok"].as_u64().unwrap() + meta["scenes_not_ok"].as_u64().unwrap();
     assert_eq!(
         rows, 8000,
         "the sidecar counts the whole file, not the last run"
     );
-    let ref_meta: serde_json::Value =
-        serde_json::from_slice(&fs::read(d.join("ref.csv.json")).unwrap()).unwrap();
+    let ref_meta = sidecar(&d.join("ref.csv.json"));
     assert_eq!(meta["scenes_ok"], ref_meta["scenes_ok"]);
     assert!(meta["wall_s"].as_f64().unwrap() >= meta["wall_s_this_run"].as_f64().unwrap());
 }
@@ -354,8 +339,15 @@ fn resume_and_merge_refuse_parts_that_do_not_belong_together() {
     let d = dir.path();
     let sw = write_sweep(d, 3, 4);
     let p = |n: &str| d.join(n);
+    // `cradle merge PARTS... --out m.csv`, paths in the test's folder.
+    let merge = |parts: &[&str]| -> Vec<String> {
+        let mut a = vec!["merge".to_string()];
+        a.extend(parts.iter().map(|n| p(n).display().to_string()));
+        a.extend(["--out".to_string(), p("m.csv").display().to_string()]);
+        a
+    };
     // A complete output of another sweep is never taken as done by --resume.
-    ok(&["sweep", s(&sw), "--out", s(&p("a.csv")), "--backend", "cpu"]);
+    ok(&on_cpu(&sw, &p("a.csv"), &[]));
     let before = fs::read(p("a.csv")).unwrap();
     refused(
         &[
@@ -403,90 +395,25 @@ fn resume_and_merge_refuse_parts_that_do_not_belong_together() {
     );
 
     // Shards made with different solver settings.
-    ok(&[
-        "sweep",
-        s(&sw),
-        "--out",
-        s(&p("s1.csv")),
-        "--backend",
-        "cpu",
-        "--shard",
-        "1/2",
-    ]);
-    ok(&[
-        "sweep",
-        s(&sw),
-        "--out",
-        s(&p("s2.csv")),
-        "--backend",
-        "cpu",
-        "--shard",
-        "2/2",
-    ]);
-    ok(&[
-        "sweep",
-        s(&sw),
-        "--out",
-        s(&p("t2.csv")),
-        "--backend",
-        "cpu",
-        "--shard",
-        "2/2",
-        "--tolerance",
-        "1e-8",
-    ]);
-    refused(
-        &[
-            "merge",
-            s(&p("s1.csv")),
-            s(&p("t2.csv")),
-            "--out",
-            s(&p("m.csv")),
-        ],
-        "different sweep or solver",
-    );
+    ok(&on_cpu(&sw, &p("s1.csv"), &["--shard", "1/2"]));
+    ok(&on_cpu(&sw, &p("s2.csv"), &["--shard", "2/2"]));
+    ok(&on_cpu(
+        &sw,
+        &p("t2.csv"),
+        &["--shard", "2/2", "--tolerance", "1e-8"],
+    ));
+    refused(&merge(&["s1.csv", "t2.csv"]), "different sweep or solver");
     // Incomplete set, repeated part.
-    refused(
-        &["merge", s(&p("s1.csv")), "--out", s(&p("m.csv"))],
-        "missing",
-    );
-    refused(
-        &[
-            "merge",
-            s(&p("s1.csv")),
-            s(&p("s1.csv")),
-            s(&p("s2.csv")),
-            "--out",
-            s(&p("m.csv")),
-        ],
-        "more than once",
-    );
+    refused(&merge(&["s1.csv"]), "missing");
+    refused(&merge(&["s1.csv", "s1.csv", "s2.csv"]), "more than once");
     // A part without its sidecar, and one cut short after it completed.
     fs::copy(p("s2.csv"), p("n2.csv")).unwrap();
-    refused(
-        &[
-            "merge",
-            s(&p("s1.csv")),
-            s(&p("n2.csv")),
-            "--out",
-            s(&p("m.csv")),
-        ],
-        "sidecar",
-    );
+    refused(&merge(&["s1.csv", "n2.csv"]), "sidecar");
     let text = fs::read_to_string(p("s2.csv")).unwrap();
     let cut = &text[..text.trim_end().rfind('\n').unwrap() + 1];
     fs::write(p("c2.csv"), cut).unwrap();
     fs::copy(p("s2.csv.json"), p("c2.csv.json")).unwrap();
-    refused(
-        &[
-            "merge",
-            s(&p("s1.csv")),
-            s(&p("c2.csv")),
-            "--out",
-            s(&p("m.csv")),
-        ],
-        "cut short",
-    );
+    refused(&merge(&["s1.csv", "c2.csv"]), "cut short");
     assert!(!p("m.csv").exists() && !p("m.csv.partial").exists());
     // The right parts merge to the unsharded bytes, and --resume of the
     // unsharded sweep recognises the merged file as complete.
@@ -643,16 +570,7 @@ fn absurd_requests_are_refused_early_with_what_to_do() {
     let long = d.join("long.toml");
     fs::write(&long, "[scene]\nballs = 3\nvelocity = [1.0, 0, 0]\n[[axis]]\nparam = \"gap\"\nlinspace = [0, 1e-5, 10000000]\n").unwrap();
     let t0 = Instant::now();
-    ok(&[
-        "sweep",
-        s(&long),
-        "--out",
-        s(&out),
-        "--backend",
-        "cpu",
-        "--shard",
-        "100000/100000",
-    ]);
+    ok(&on_cpu(&long, &out, &["--shard", "100000/100000"]));
     let text = fs::read_to_string(&out).unwrap();
     assert_eq!(text.lines().count(), 101);
     assert!(
