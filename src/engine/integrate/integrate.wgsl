@@ -62,6 +62,32 @@ var<private> dragged: bool;
 var<private> g: real;
 var<private> inv_l: real;
 var<private> drag: real;
+var<private> hd: Header;
+var<private> h: real;
+var<private> v_floor: real;
+var<private> max_time: real;
+var<private> h_min: real;
+var<private> t_scale: real;
+var<private> h_free: real;
+var<private> a_e: real;
+var<private> h_stiff: real;
+var<private> exact: bool;
+// offsets of the substep weights and kick weights in `params`
+var<private> w0: u32;
+var<private> k0: u32;
+// the run's bookkeeping (engine::integrate::Book)
+var<private> t_first: real;
+var<private> t_release: real;
+var<private> max_ov: real;
+var<private> max_ratio: real;
+var<private> steps: u32;
+var<private> contacts: u32;
+var<private> closed: bool;
+// the step being taken and whether it lands on a pendulum's duration
+var<private> hstep: real;
+var<private> last: bool;
+// `ready`: an impact was taken in closed form; look again before stepping.
+const FLY_AGAIN: u32 = 254u;
 
 // engine::contact::hertz_force
 fn hertz_force(kc: real, dc: real) -> real {
@@ -397,34 +423,32 @@ fn exact_impact(c: u32) -> Impact {
     return out;
 }
 
-// engine::integrate::integrate
-fn integrate(i: u32) {
-    if (out_u32[N_WORDS * i + W_END] != END_RUNNING) {
-        return;
-    }
-    let hd = headers[i];
+// engine::integrate::Lanes::load — the scene's constants and the state it
+// reached in the last dispatch, from the buffers (the CPU loads a lane).
+fn load(i: u32) {
+    hd = headers[i];
     nb = hd.nb;
     nc = nb - 1u;
     let p0 = hd.input;
     let nw = hd.n_weights;
-    let h = params[p0 + p_h(nb, nw)];
-    let v_floor = params[p0 + p_v_floor(nb, nw)];
-    let max_time = params[p0 + p_max_time(nb, nw)];
+    h = params[p0 + p_h(nb, nw)];
+    v_floor = params[p0 + p_v_floor(nb, nw)];
+    max_time = params[p0 + p_max_time(nb, nw)];
     one = params[p0 + p_one(nb, nw)];
-    let h_min = params[p0 + p_h_min(nb, nw)];
-    let t_scale = params[p0 + p_t_scale(nb, nw)];
-    let h_free = params[p0 + p_h_free(nb, nw)];
+    h_min = params[p0 + p_h_min(nb, nw)];
+    t_scale = params[p0 + p_t_scale(nb, nw)];
+    h_free = params[p0 + p_h_free(nb, nw)];
     g = params[p0 + p_g(nb, nw)];
     inv_l = params[p0 + p_inv_l(nb, nw)];
     drag = params[p0 + p_drag(nb, nw)];
-    let a_e = params[p0 + p_a_e(nb, nw)];
-    let h_stiff = params[p0 + p_h_stiff(nb, nw)];
-    let exact = (hd.flags & FLAG_EXACT) != 0u;
+    a_e = params[p0 + p_a_e(nb, nw)];
+    h_stiff = params[p0 + p_h_stiff(nb, nw)];
+    exact = (hd.flags & FLAG_EXACT) != 0u;
     pend = TERMS && (hd.flags & FLAG_PENDULUM) != 0u;
     damped = TERMS && (hd.flags & FLAG_DAMPED) != 0u;
     dragged = TERMS && (hd.flags & FLAG_DRAG) != 0u;
-    let w0 = p0 + p_weights(nb, nw); // substep weights
-    let k0 = p0 + p_kicks(nb, nw); // kick weights (engine::integrate::kick_weights)
+    w0 = p0 + p_weights(nb, nw); // substep weights
+    k0 = p0 + p_kicks(nb, nw); // kick weights (engine::integrate::kick_weights)
     let o = hd.output;
     for (var b = 0u; b < nb; b++) {
         inv_m[b] = params[p0 + p_inv_m(nb, nw) + b];
@@ -445,14 +469,14 @@ fn integrate(i: u32) {
         chi[c] = out_real[o + s_chi(nb, nw) + c];
     }
     tt[0] = out_real[o + s_t(nb, nw)];
-    var t_first = out_real[o + s_t_first(nb, nw)];
-    var t_release = out_real[o + s_t_release(nb, nw)];
-    var max_ov = out_real[o + s_max_overlap(nb, nw)];
-    var max_ratio = out_real[o + s_max_ratio(nb, nw)];
+    t_first = out_real[o + s_t_first(nb, nw)];
+    t_release = out_real[o + s_t_release(nb, nw)];
+    max_ov = out_real[o + s_max_overlap(nb, nw)];
+    max_ratio = out_real[o + s_max_ratio(nb, nw)];
     x0[0] = out_real[o + s_x0(nb, nw)];
     cx0[0] = out_real[o + s_cx0(nb, nw)];
     ct[0] = out_real[o + s_ct(nb, nw)];
-    var closed = forces();
+    closed = forces();
     // Damped forces depend on the velocity of the drift they were computed in:
     // carry them over from the last dispatch, as the CPU carries them over.
     if (damped) {
@@ -460,167 +484,182 @@ fn integrate(i: u32) {
             f[c] = out_real[o + s_f(nb, nw) + c];
         }
     }
-    var steps = out_u32[N_WORDS * i + W_STEPS];
-    var contacts = out_u32[N_WORDS * i + W_CONTACTS];
-    var end = END_RUNNING;
-    for (var it = 0u; it < hd.budget; it++) {
-        if (!closed && !pend) {
-            // Free flight: jump to the next onset, if any.
-            var found = false;
-            var tau = real(0.0);
-            var next = 0u;
+    steps = out_u32[N_WORDS * i + W_STEPS];
+    contacts = out_u32[N_WORDS * i + W_CONTACTS];
+}
+
+// engine::integrate::Lanes::ready — free flight to the next onset (free line,
+// isolated impacts in closed form on the way: Lanes::fly), then the end checks.
+// END_RUNNING: a step is due; FLY_AGAIN: an impact was taken, look again.
+fn ready() -> u32 {
+    if (!closed && !pend) {
+        // Free flight: jump to the next onset, if any.
+        var found = false;
+        var tau = real(0.0);
+        var next = 0u;
+        for (var c = 0u; c < nc; c++) {
+            let r = v[c] - v[c + 1u];
+            if (r > v_floor) {
+                let dt = -d[c] / r;
+                if (!found || dt < tau) {
+                    tau = dt;
+                    next = c;
+                    found = true;
+                }
+            }
+        }
+        if (!found) {
+            return END_SETTLED;
+        }
+        let capped = tt[0] + tau > max_time;
+        if (capped) {
+            tau = max(max_time - tt[0], real(0.0));
+        }
+        if (tau > real(0.0)) {
             for (var c = 0u; c < nc; c++) {
                 let r = v[c] - v[c + 1u];
-                if (r > v_floor) {
-                    let dt = -d[c] / r;
-                    if (!found || dt < tau) {
-                        tau = dt;
-                        next = c;
-                        found = true;
-                    }
-                }
-            }
-            if (!found) {
-                end = END_SETTLED;
-                break;
-            }
-            let capped = tt[0] + tau > max_time;
-            if (capped) {
-                tau = max(max_time - tt[0], real(0.0));
-            }
-            if (tau > real(0.0)) {
-                for (var c = 0u; c < nc; c++) {
-                    let r = v[c] - v[c + 1u];
-                    let dn = d[c] + r * tau;
-                    // A closing speed at or below the floor: no onset, but no
-                    // passing through either — the pair stops touching.
-                    if (r > real(0.0) && r <= v_floor) {
-                        d[c] = min(dn, real(0.0));
-                    } else {
-                        d[c] = dn;
-                    }
-                }
-                tt[0] = tt[0] + tau;
-            }
-            if (capped) {
-                end = END_TIME_CAP;
-                break;
-            }
-            d[next] = real(0.0);
-            cd[next] = real(0.0);
-            if (t_first < real(0.0)) {
-                t_first = tt[0];
-            }
-            // An isolated impact is over in one jump; then free flight again.
-            if (exact) {
-                let imp = exact_impact(next);
-                if (imp.taken) {
-                    max_ov = max(max_ov, imp.dmax);
-                    max_ratio = max(max_ratio, imp.dmax * inv_r[next]);
-                    tt[0] = tt[0] + imp.tc;
-                    contacts += 1u;
-                    t_release = max(t_release, tt[0]);
-                    continue;
-                }
-            }
-        }
-        if (pend && tt[0] >= max_time) {
-            end = END_DURATION;
-            break;
-        }
-        if (steps >= hd.max_steps) {
-            end = END_STEP_CAP;
-            break;
-        }
-        if (tt[0] >= max_time) {
-            end = END_TIME_CAP;
-            break;
-        }
-        // The step: graded near kinks; on a pendulum long in free flight and
-        // landing exactly on the duration.
-        var step = h;
-        if (pend || hd.quarters > 0u) {
-            var s0 = h;
-            if (pend && !closed) {
-                s0 = h_free;
-            }
-            s0 = stiffness_cap(s0, h_stiff, h_min);
-            step = graded_step(s0, h, h_min, t_scale, hd.quarters);
-        }
-        var last = false;
-        if (pend) {
-            let rest = (max_time - tt[0]) - ct[0];
-            if (rest <= step) {
-                step = rest;
-                last = true;
-            }
-        }
-        for (var c = 0u; c < nc; c++) {
-            d0[c] = d[c];
-            if (damped) {
-                // χ = a/v_imp: the closing speed at onset, or the largest since.
-                let chi_c = a_e / max(v[c] - v[c + 1u], v_floor);
-                if (d[c] <= real(0.0)) {
-                    chi[c] = chi_c;
+                let dn = d[c] + r * tau;
+                // A closing speed at or below the floor: no onset, but no
+                // passing through either — the pair stops touching.
+                if (r > real(0.0) && r <= v_floor) {
+                    d[c] = min(dn, real(0.0));
                 } else {
-                    chi[c] = min(chi[c], chi_c);
+                    d[c] = dn;
                 }
             }
+            tt[0] = tt[0] + tau;
         }
-        // One step: velocity-Verlet substeps (kick, drift, forces, kick), the
-        // closing half kick of each joined with the opening one of the next.
-        kick(params[k0] * step);
-        for (var wi = 0u; wi < hd.n_weights; wi++) {
-            let ws = params[w0 + wi] * step;
-            for (var c = 0u; c < nc; c++) {
-                add(&d, &cd, c, ws * (v[c] - v[c + 1u]));
+        if (capped) {
+            return END_TIME_CAP;
+        }
+        d[next] = real(0.0);
+        cd[next] = real(0.0);
+        if (t_first < real(0.0)) {
+            t_first = tt[0];
+        }
+        // An isolated impact is over in one jump; then free flight again.
+        if (exact) {
+            let imp = exact_impact(next);
+            if (imp.taken) {
+                max_ov = max(max_ov, imp.dmax);
+                max_ratio = max(max_ratio, imp.dmax * inv_r[next]);
+                tt[0] = tt[0] + imp.tc;
+                contacts += 1u;
+                t_release = max(t_release, tt[0]);
+                return FLY_AGAIN;
             }
-            if (pend) {
-                add1(&x0, &cx0, ws * v[0]);
-            }
-            closed = forces();
-            kick(params[k0 + wi + 1u] * step);
-        }
-        let t_start = tt[0];
-        if (last) {
-            tt[0] = max_time;
-            ct[0] = real(0.0);
-        } else {
-            add1(&tt, &ct, step);
-        }
-        steps += 1u;
-        // Onsets, overlaps, releases (located inside the step); the kink
-        // impulse correction of a crossing step (graded, elastic).
-        for (var c = 0u; c < nc; c++) {
-            let dd = d0[c];
-            let d1 = d[c];
-            if (hd.quarters > 0u && !damped && ((d1 > real(0.0)) != (dd > real(0.0)))) {
-                let dj = kink_impulse_error(k[c], dd, d1, w0, k0, hd.n_weights) * step;
-                add(&v, &cv, c, -(dj * inv_m[c]));
-                add(&v, &cv, c + 1u, dj * inv_m[c + 1u]);
-            }
-            if (d1 > real(0.0)) {
-                if (dd <= real(0.0)) {
-                    contacts += 1u;
-                    if (t_first < real(0.0)) {
-                        t_first = t_start;
-                    }
-                }
-                max_ov = max(max_ov, d1);
-                max_ratio = max(max_ratio, d1 * inv_r[c]);
-            } else if (dd > real(0.0)) {
-                t_release = max(t_release, t_start + step * dd / (dd - d1));
-            }
-        }
-        var finite = true;
-        for (var b = 0u; b < nb; b++) {
-            finite = finite && (abs(v[b]) < real(FINITE_LIMIT));
-        }
-        if (!finite) {
-            end = END_NON_FINITE;
-            break;
         }
     }
+    if (pend && tt[0] >= max_time) {
+        return END_DURATION;
+    }
+    if (steps >= hd.max_steps) {
+        return END_STEP_CAP;
+    }
+    if (tt[0] >= max_time) {
+        return END_TIME_CAP;
+    }
+    return END_RUNNING;
+}
+
+// engine::integrate::Lanes::plan_steps — the step: graded near kinks; on a
+// pendulum long in free flight and landing exactly on the duration. Then the
+// overlaps at its start and, damped, each contact's χ.
+fn plan_steps() {
+    hstep = h;
+    if (pend || hd.quarters > 0u) {
+        var s0 = h;
+        if (pend && !closed) {
+            s0 = h_free;
+        }
+        s0 = stiffness_cap(s0, h_stiff, h_min);
+        hstep = graded_step(s0, h, h_min, t_scale, hd.quarters);
+    }
+    last = false;
+    if (pend) {
+        let rest = (max_time - tt[0]) - ct[0];
+        if (rest <= hstep) {
+            hstep = rest;
+            last = true;
+        }
+    }
+    for (var c = 0u; c < nc; c++) {
+        d0[c] = d[c];
+        if (damped) {
+            // χ = a/v_imp: the closing speed at onset, or the largest since.
+            let chi_c = a_e / max(v[c] - v[c + 1u], v_floor);
+            if (d[c] <= real(0.0)) {
+                chi[c] = chi_c;
+            } else {
+                chi[c] = min(chi[c], chi_c);
+            }
+        }
+    }
+}
+
+// engine::integrate::Lanes::substeps —
+// one step: velocity-Verlet substeps (kick, drift, forces, kick), the
+// closing half kick of each joined with the opening one of the next.
+fn substeps() {
+    kick(params[k0] * hstep);
+    for (var wi = 0u; wi < hd.n_weights; wi++) {
+        let ws = params[w0 + wi] * hstep;
+        for (var c = 0u; c < nc; c++) {
+            add(&d, &cd, c, ws * (v[c] - v[c + 1u]));
+        }
+        if (pend) {
+            add1(&x0, &cx0, ws * v[0]);
+        }
+        closed = forces();
+        kick(params[k0 + wi + 1u] * hstep);
+    }
+}
+
+// engine::integrate::Lanes::account — time, onsets, overlaps, releases, the
+// kink impulse correction; whether the velocities are still finite.
+fn account() -> bool {
+    let t_start = tt[0];
+    if (last) {
+        tt[0] = max_time;
+        ct[0] = real(0.0);
+    } else {
+        add1(&tt, &ct, hstep);
+    }
+    steps += 1u;
+    // Onsets, overlaps, releases (located inside the hstep); the kink
+    // impulse correction of a crossing hstep (graded, elastic).
+    for (var c = 0u; c < nc; c++) {
+        let dd = d0[c];
+        let d1 = d[c];
+        if (hd.quarters > 0u && !damped && ((d1 > real(0.0)) != (dd > real(0.0)))) {
+            let dj = kink_impulse_error(k[c], dd, d1, w0, k0, hd.n_weights) * hstep;
+            add(&v, &cv, c, -(dj * inv_m[c]));
+            add(&v, &cv, c + 1u, dj * inv_m[c + 1u]);
+        }
+        if (d1 > real(0.0)) {
+            if (dd <= real(0.0)) {
+                contacts += 1u;
+                if (t_first < real(0.0)) {
+                    t_first = t_start;
+                }
+            }
+            max_ov = max(max_ov, d1);
+            max_ratio = max(max_ratio, d1 * inv_r[c]);
+        } else if (dd > real(0.0)) {
+            t_release = max(t_release, t_start + hstep * dd / (dd - d1));
+        }
+    }
+    var finite = true;
+    for (var b = 0u; b < nb; b++) {
+        finite = finite && (abs(v[b]) < real(FINITE_LIMIT));
+    }
+    return finite;
+}
+
+// engine::integrate::Lanes::finish — the state back to the buffers.
+fn finish(i: u32, end: u32) {
+    let o = hd.output;
+    let nw = hd.n_weights;
     for (var b = 0u; b < nb; b++) {
         out_real[o + s_v(nb, nw) + b] = v[b];
         out_real[o + s_cv(nb, nw) + b] = cv[b];
@@ -642,6 +681,32 @@ fn integrate(i: u32) {
     out_u32[N_WORDS * i + W_END] = end;
     out_u32[N_WORDS * i + W_STEPS] = steps;
     out_u32[N_WORDS * i + W_CONTACTS] = contacts;
+}
+
+// engine::integrate::integrate — at most `budget` steps of scene i.
+fn integrate(i: u32) {
+    if (out_u32[N_WORDS * i + W_END] != END_RUNNING) {
+        return;
+    }
+    load(i);
+    var end = END_RUNNING;
+    for (var it = 0u; it < hd.budget; it++) {
+        let r = ready();
+        if (r == FLY_AGAIN) {
+            continue;
+        }
+        if (r != END_RUNNING) {
+            end = r;
+            break;
+        }
+        plan_steps();
+        substeps();
+        if (!account()) {
+            end = END_NON_FINITE;
+            break;
+        }
+    }
+    finish(i, end);
 }
 
 @compute @workgroup_size(64)
