@@ -91,41 +91,45 @@ pub enum Command {
         out: PathBuf,
     },
     /// Write Slurm batch scripts that run a sweep as a job array and merge it.
-    #[command(
-        after_help = "Writes DIR/array.sbatch (one task per shard), DIR/merge.sbatch (checks that every\nshard finished, then merges) and DIR/submit.sh (submits both, the merge after the array).\n\nExamples:\n  cradle slurm examples/mass_gap.toml --shards 8 --time 00:30:00 && slurm-mass_gap/submit.sh\n  cradle slurm big.toml --shards 64 --gpus-per-task 1 --partition gpu --out big.csv\n  sbatch --array=5 slurm-big/array.sbatch     # resubmit shard 5 alone; it resumes"
-    )]
-    Slurm {
-        /// Sweep TOML file.
-        sweep: PathBuf,
-        /// Number of shards (array tasks).
-        #[arg(long)]
-        shards: u64,
-        /// Merged output CSV [default: SWEEP's name .csv in the current directory].
-        #[arg(long, value_name = "FILE")]
-        out: Option<PathBuf>,
-        /// Directory for the scripts, shard outputs and logs [default: slurm-SWEEP's name].
-        #[arg(long, value_name = "DIR")]
-        dir: Option<PathBuf>,
-        /// Slurm partition.
-        #[arg(long)]
-        partition: Option<String>,
-        /// GPUs per task (requested with --gres=gpu:G; the shards then run with --backend gpu).
-        #[arg(long, default_value_t = 0)]
-        gpus_per_task: u32,
-        /// CPUs per task (the CPU backend's threads).
-        #[arg(long)]
-        cpus_per_task: Option<u32>,
-        /// Time limit per task, Slurm syntax (e.g. 01:00:00).
-        #[arg(long)]
-        time: Option<String>,
-        /// The cradle binary the tasks run [default: this one].
-        #[arg(long, value_name = "PATH")]
-        cradle: Option<PathBuf>,
-        #[command(flatten)]
-        solver: SolverFlags,
-    },
+    Slurm(SlurmArgs),
     /// List the built-in scenes.
     Scenes,
+}
+
+/// `cradle slurm`'s raw flags; [`crate::config::slurm_plan`] checks them.
+#[derive(clap::Args, Debug, Clone)]
+#[command(
+    after_help = "Writes DIR/array.sbatch (one task per shard), DIR/merge.sbatch (checks that every\nshard finished, then merges) and DIR/submit.sh (submits both, the merge after the array).\n\nExamples:\n  cradle slurm examples/mass_gap.toml --shards 8 --time 00:30:00 && slurm-mass_gap/submit.sh\n  cradle slurm big.toml --shards 64 --gpus-per-task 1 --partition gpu --out big.csv\n  sbatch --array=5 slurm-big/array.sbatch     # resubmit shard 5 alone; it resumes"
+)]
+pub struct SlurmArgs {
+    /// Sweep TOML file.
+    pub sweep: PathBuf,
+    /// Number of shards (array tasks).
+    #[arg(long)]
+    pub shards: u64,
+    /// Merged output CSV [default: SWEEP's name .csv in the current directory].
+    #[arg(long, value_name = "FILE")]
+    pub out: Option<PathBuf>,
+    /// Directory for the scripts, shard outputs and logs [default: slurm-SWEEP's name].
+    #[arg(long, value_name = "DIR")]
+    pub dir: Option<PathBuf>,
+    /// Slurm partition.
+    #[arg(long)]
+    pub partition: Option<String>,
+    /// GPUs per task (requested with --gres=gpu:G; the shards then run with --backend gpu).
+    #[arg(long, default_value_t = 0)]
+    pub gpus_per_task: u32,
+    /// CPUs per task (the CPU backend's threads).
+    #[arg(long)]
+    pub cpus_per_task: Option<u32>,
+    /// Time limit per task, Slurm syntax (e.g. 01:00:00).
+    #[arg(long)]
+    pub time: Option<String>,
+    /// The cradle binary the tasks run [default: this one].
+    #[arg(long, value_name = "PATH")]
+    pub cradle: Option<PathBuf>,
+    #[command(flatten)]
+    pub solver: SolverFlags,
 }
 
 /// `cradle sweep`'s raw flags; [`crate::config::SweepConfig`] checks them.

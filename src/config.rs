@@ -10,7 +10,7 @@
 
 use std::path::{Path, PathBuf};
 
-use crate::cli::{flag, parse_shard, BackendChoice, Format, SolverFlags, SweepArgs};
+use crate::cli::{flag, parse_shard, BackendChoice, Format, SlurmArgs, SolverFlags, SweepArgs};
 use crate::engine::{simulate_chain, Chain, Model, Overrides, Silent, Solver};
 use crate::error::InputError;
 use crate::output::guard;
@@ -179,4 +179,52 @@ impl RunConfig {
             trace,
         })
     }
+}
+
+/// A checked `cradle slurm`: everything a task would refuse is refused now,
+/// not on the cluster (flags against the file, the merged output's path,
+/// the solver, the shard count).
+pub fn slurm_plan(a: &SlurmArgs) -> anyhow::Result<crate::slurm::Plan> {
+    let spec = Sweep::load(&a.sweep)?;
+    let overrides = a.solver.overrides()?;
+    spec.check_overrides(&overrides)?;
+    Solver::resolve(&spec.base, &overrides)?;
+    if let Some(o) = &a.out {
+        guard::output("--out", o, &spec.inputs, SWEEP_COMPANIONS)?;
+    }
+    if a.shards == 0 || a.shards > spec.total {
+        return Err(flag(
+            "--shards",
+            &a.shards.to_string(),
+            &format!("1 ..= {} (the sweep's scenes)", spec.total),
+        )
+        .into());
+    }
+    let stem = a
+        .sweep
+        .file_stem()
+        .unwrap_or_default()
+        .to_string_lossy()
+        .to_string();
+    Ok(crate::slurm::Plan {
+        out: a
+            .out
+            .clone()
+            .unwrap_or_else(|| format!("{stem}.csv").into()),
+        dir: a
+            .dir
+            .clone()
+            .unwrap_or_else(|| format!("slurm-{stem}").into()),
+        sweep: a.sweep.clone(),
+        shards: a.shards,
+        partition: a.partition.clone(),
+        gpus_per_task: a.gpus_per_task,
+        cpus_per_task: a.cpus_per_task,
+        time: a.time.clone(),
+        cradle: match &a.cradle {
+            Some(c) => c.clone(),
+            None => std::env::current_exe()?,
+        },
+        flags: a.solver.args(),
+    })
 }

@@ -12,15 +12,15 @@ use hertz_cradle::backend::cpu::Cpu;
 use hertz_cradle::backend::gpu::{find_adapter, Gpu, Want};
 use hertz_cradle::backend::Backend;
 use hertz_cradle::cli::{flag, BackendChoice, Cli, Command, Format};
-use hertz_cradle::config::{RunConfig, SweepConfig};
-use hertz_cradle::engine::{simulate_chain, Silent, Solver};
+use hertz_cradle::config::{slurm_plan, RunConfig, SweepConfig};
+use hertz_cradle::engine::{simulate_chain, Silent};
 use hertz_cradle::output::guard;
 use hertz_cradle::output::lock::OutputLock;
 use hertz_cradle::output::merge::merge;
 use hertz_cradle::output::{row, trace::TraceWriter};
 use hertz_cradle::plot;
 use hertz_cradle::scene::{builtin, Precision};
-use hertz_cradle::sweep::{run::Options, Sweep};
+use hertz_cradle::sweep::run::Options;
 use hertz_cradle::InputError;
 
 fn main() -> ExitCode {
@@ -173,55 +173,8 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             eprintln!("cradle: wrote {}", out.display());
             Ok(())
         }
-        Command::Slurm {
-            sweep,
-            shards,
-            out,
-            dir,
-            partition,
-            gpus_per_task,
-            cpus_per_task,
-            time,
-            cradle,
-            solver,
-        } => {
-            // Check everything now, not on the cluster: flags against the
-            // file, the merged output's path, the solver.
-            let spec = Sweep::load(&sweep)?;
-            let overrides = solver.overrides()?;
-            spec.check_overrides(&overrides)?;
-            Solver::resolve(&spec.base, &overrides)?;
-            if let Some(o) = &out {
-                guard::output("--out", o, &spec.inputs, &[".partial", ".json", ".lock"])?;
-            }
-            if shards == 0 || shards > spec.total {
-                return Err(flag(
-                    "--shards",
-                    &shards.to_string(),
-                    &format!("1 ..= {} (the sweep's scenes)", spec.total),
-                )
-                .into());
-            }
-            let stem = sweep
-                .file_stem()
-                .unwrap_or_default()
-                .to_string_lossy()
-                .to_string();
-            let plan = hertz_cradle::slurm::Plan {
-                out: out.unwrap_or_else(|| format!("{stem}.csv").into()),
-                dir: dir.unwrap_or_else(|| format!("slurm-{stem}").into()),
-                sweep,
-                shards,
-                partition,
-                gpus_per_task,
-                cpus_per_task,
-                time,
-                cradle: match cradle {
-                    Some(c) => c,
-                    None => std::env::current_exe()?,
-                },
-                flags: solver.args(),
-            };
+        Command::Slurm(args) => {
+            let plan = slurm_plan(&args)?;
             for p in hertz_cradle::slurm::write(&plan)? {
                 eprintln!("cradle: wrote {}", p.display());
             }
