@@ -4,7 +4,7 @@
 //! work so tests can bring their own adapter.
 
 use std::borrow::Cow;
-use std::collections::{BTreeMap, HashMap};
+use std::collections::HashMap;
 use std::sync::{Arc, Mutex};
 
 use anyhow::{anyhow, bail, Context, Result};
@@ -16,7 +16,7 @@ use super::layout::{FLAG_DAMPED, FLAG_DRAG, FLAG_EXACT, FLAG_PENDULUM};
 use super::{Backend, Job};
 use crate::engine::integrate::{closing_speed_floor, kick_weights, Run};
 use crate::engine::real::Real;
-use crate::engine::{plan, simulate_chain, Chain, Model, Outcome, Silent, Solver, UNSTEPPED};
+use crate::engine::{plan, simulate_chain, Chain, Outcome, Silent, Solver, UNSTEPPED};
 use crate::scene::Precision;
 
 /// The shader's body; its prelude comes from `layout::prelude`.
@@ -586,35 +586,31 @@ impl Backend for Gpu {
     fn run(&self, jobs: &[Job]) -> Result<Vec<Outcome>> {
         let mut out: Vec<Option<Outcome>> = vec![None; jobs.len()];
         // One group per pipeline: precision, terms, size class.
-        let mut groups: BTreeMap<PipeKey, Vec<usize>> = BTreeMap::new();
-        for (i, j) in jobs.iter().enumerate() {
-            if let Job::Run { chain, solver } = j {
-                if solver.model == Model::Hertz {
-                    let key = (
-                        solver.precision == Precision::F64,
-                        chain.needs_terms(),
-                        size_class(chain.n_bodies()),
-                    );
-                    groups.entry(key).or_default().push(i);
-                }
-            }
-        }
+        let (idx_of, runs_in): (Vec<usize>, Vec<(&Chain, &Solver)>) = jobs
+            .iter()
+            .enumerate()
+            .filter_map(|(i, j)| match j {
+                Job::Run { chain, solver } => Some((i, (chain, solver))),
+                Job::Invalid { .. } => None,
+            })
+            .unzip();
+        let groups = crate::engine::hertz_groups(&runs_in, |ch, s| {
+            (
+                s.precision == Precision::F64,
+                ch.needs_terms(),
+                size_class(ch.n_bodies()),
+            )
+        });
         for ((f64, terms, class), idx) in groups {
-            let batch: Vec<(&Chain, &Solver)> = idx
-                .iter()
-                .map(|&i| match &jobs[i] {
-                    Job::Run { chain, solver } => (chain, solver),
-                    Job::Invalid { .. } => unreachable!("grouped runs only"),
-                })
-                .collect();
+            let batch: Vec<(&Chain, &Solver)> = idx.iter().map(|&k| runs_in[k]).collect();
             let runs = if f64 {
                 self.runs::<f64>(&batch, terms, class)?
             } else {
                 self.runs::<f32>(&batch, terms, class)?
             };
-            for ((i, (ch, solver)), run) in idx.into_iter().zip(batch).zip(runs) {
+            for ((k, (ch, solver)), run) in idx.into_iter().zip(batch).zip(runs) {
                 let dt = crate::engine::row_dt(&plan(ch, solver).0.unwrap_or(UNSTEPPED));
-                out[i] = Some(Outcome::from_run(ch, &run, dt));
+                out[idx_of[k]] = Some(Outcome::from_run(ch, &run, dt));
             }
         }
         Ok(out

@@ -62,20 +62,16 @@ pub fn simulate_chain<O: Observer>(chain: &Chain, solver: &Solver, obs: &mut O) 
 /// [`simulate_chain`] on each.
 pub fn simulate_batch(jobs: &[(&Chain, &Solver)]) -> Vec<Outcome> {
     let mut out: Vec<Option<Outcome>> = vec![None; jobs.len()];
-    for precision in [Precision::F64, Precision::F32] {
-        let (idx, tasks): (Vec<usize>, Vec<(Task, f64)>) = jobs
+    for (f32, idx) in hertz_groups(jobs, |_, s| s.precision == Precision::F32) {
+        let tasks: Vec<(Task, f64)> = idx
             .iter()
-            .enumerate()
-            .filter(|(_, (_, s))| s.model == Model::Hertz && s.precision == precision)
-            .map(|(i, (c, s))| (i, hertz_task(c, s)))
-            .unzip();
-        if idx.is_empty() {
-            continue;
-        }
+            .map(|&i| hertz_task(jobs[i].0, jobs[i].1))
+            .collect();
         let plain: Vec<Task> = tasks.iter().map(|t| t.0).collect();
-        let runs = match precision {
-            Precision::F64 => integrate_batch::<f64>(&plain),
-            Precision::F32 => integrate_batch::<f32>(&plain),
+        let runs = if f32 {
+            integrate_batch::<f32>(&plain)
+        } else {
+            integrate_batch::<f64>(&plain)
         };
         for ((i, run), (task, dt)) in idx.into_iter().zip(runs).zip(tasks) {
             out[i] = Some(Outcome::from_run(task.chain, &run, dt));
@@ -85,6 +81,23 @@ pub fn simulate_batch(jobs: &[(&Chain, &Solver)]) -> Vec<Outcome> {
         .zip(jobs)
         .map(|(o, (c, s))| o.unwrap_or_else(|| simulate_model(c, s)))
         .collect()
+}
+
+/// Job routing, one definition for every backend: the Hertz runs of `jobs`
+/// (indices, in order) grouped by `key` (precision, and whatever else picks
+/// a kernel: the GPU adds `TERMS` and the size class). Comparison models are
+/// left out: they are instant on the CPU ([`simulate_chain`]).
+pub fn hertz_groups<K: Ord>(
+    jobs: &[(&Chain, &Solver)],
+    key: impl Fn(&Chain, &Solver) -> K,
+) -> std::collections::BTreeMap<K, Vec<usize>> {
+    let mut groups = std::collections::BTreeMap::<K, Vec<usize>>::new();
+    for (i, (c, s)) in jobs.iter().enumerate() {
+        if s.model == Model::Hertz {
+            groups.entry(key(c, s)).or_default().push(i);
+        }
+    }
+    groups
 }
 
 /// A Hertz run of `chain` and its nominal step (NaN when nothing can collide).
