@@ -17,14 +17,7 @@ use crate::output::guard;
 use crate::scene::{Precision, Scene};
 use crate::sweep::Sweep;
 
-/// Files a sweep writes beside its output `FILE`.
-pub const SWEEP_COMPANIONS: &[&str] = &[
-    ".partial",
-    ".partial.spec",
-    ".json",
-    ".json.partial",
-    ".lock",
-];
+use crate::output::partial::COMPANIONS;
 
 /// Most worker threads per core the CPU backend accepts: beyond that a run
 /// only spends memory and time spawning threads that wait for a core.
@@ -71,7 +64,7 @@ impl SweepConfig {
         let threads = a.threads.map(threads).transpose()?;
         let sweep = Sweep::load(&a.sweep)?;
         sweep.check_overrides(&overrides)?;
-        let out = guard::output("--out", &a.out, &sweep.inputs, SWEEP_COMPANIONS)?;
+        let out = guard::output("--out", &a.out, &sweep.inputs, COMPANIONS)?;
         let precision = Solver::resolve(&sweep.base, &overrides)?.precision;
         Ok(SweepConfig {
             sweep,
@@ -190,7 +183,7 @@ pub fn slurm_plan(a: &SlurmArgs) -> anyhow::Result<crate::slurm::Plan> {
     spec.check_overrides(&overrides)?;
     Solver::resolve(&spec.base, &overrides)?;
     if let Some(o) = &a.out {
-        guard::output("--out", o, &spec.inputs, SWEEP_COMPANIONS)?;
+        guard::output("--out", o, &spec.inputs, COMPANIONS)?;
     }
     if a.shards == 0 || a.shards > spec.total {
         return Err(flag(

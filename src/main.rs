@@ -131,7 +131,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 "--out",
                 &out,
                 &inputs,
-                &[".partial", ".json", ".json.tmp", ".lock"],
+                hertz_cradle::output::partial::COMPANIONS,
             )?;
             let _lock = OutputLock::acquire(&target)?;
             let n = merge(&inputs, &target)?;

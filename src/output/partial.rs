@@ -37,6 +37,18 @@ pub struct PartialCsv {
     pub wall_before: f64,
 }
 
+/// Every file written beside an output `FILE` (by a sweep or a merge): the
+/// partial rows, the resume fingerprint, the sidecar, their temporaries
+/// ([`write_atomic`]) and the lock. `output::guard` checks each of them.
+pub const COMPANIONS: &[&str] = &[
+    ".partial",
+    ".partial.spec",
+    ".partial.spec.tmp",
+    ".json",
+    ".json.tmp",
+    ".lock",
+];
+
 pub fn partial_path(out: &Path) -> PathBuf {
     with_suffix(out, ".partial")
 }
@@ -53,10 +65,13 @@ pub enum Opened {
     AlreadyComplete,
 }
 
+/// Suffix of [`write_atomic`]'s temporary file.
+const TMP: &str = ".tmp";
+
 /// Write `text` to `path` atomically: a temporary file beside it, synced,
 /// then renamed over it.
 pub fn write_atomic(path: &Path, text: &[u8]) -> Result<()> {
-    let tmp = with_suffix(path, ".tmp");
+    let tmp = with_suffix(path, TMP);
     let r = (|| -> std::io::Result<()> {
         let mut f = File::create(&tmp)?;
         f.write_all(text)?;
