@@ -266,14 +266,15 @@ impl Gpu {
         self.f64_ok
     }
 
-    /// Integrate `jobs` (all valid) in precision `R`; one [`Run`] each.
+    /// Integrate `jobs` (all valid) in precision `R`; one [`Run`] each, with
+    /// its `dt` column ([`crate::engine::row_dt`] of the plan it ran with).
     /// `terms`: some scene is a pendulum or dissipative (the general pipeline).
     fn runs<R: Real + Pod>(
         &self,
         jobs: &[(&Chain, &Solver)],
         terms: bool,
         class: usize,
-    ) -> Result<Vec<Run>> {
+    ) -> Result<Vec<(Run, f64)>> {
         let p = match std::mem::size_of::<R>() {
             4 => Precision::F32,
             _ if self.f64_ok => Precision::F64,
@@ -317,8 +318,9 @@ impl Gpu {
         &self,
         pipe: &wgpu::ComputePipeline,
         jobs: &[(&Chain, &Solver)],
-    ) -> Result<Vec<Run>> {
+    ) -> Result<Vec<(Run, f64)>> {
         let mut headers = Vec::with_capacity(jobs.len());
+        let mut dts = Vec::with_capacity(jobs.len());
         let budget = dispatch_budget(jobs);
         let mut params: Vec<R> = Vec::new();
         // The state each scene starts from, exactly as the CPU integrator does.
@@ -326,6 +328,7 @@ impl Gpu {
         for (ch, solver) in jobs {
             let (sp, lim) = plan(ch, solver);
             let sp = sp.unwrap_or(UNSTEPPED);
+            dts.push(crate::engine::row_dt(&sp));
             let nb = ch.n_bodies();
             headers.push(GpuHeader {
                 nb: nb as u32,
@@ -490,25 +493,23 @@ impl Gpu {
         Ok(headers
             .iter()
             .zip(jobs)
+            .zip(dts)
             .enumerate()
-            .map(|(i, (h, (ch, _)))| {
+            .map(|(i, ((h, (ch, _)), dt))| {
                 let (nb, o, nw) = (h.nb as usize, h.output as usize, h.n_weights as usize);
                 let f = |j: usize| reals[o + j].to64();
                 let at = |name: &str| f(layout::offset(STATE, name, nb, nw));
                 let region = |name: &str| {
-                    let s = layout::offset(STATE, name, nb, nw);
-                    let n = STATE
-                        .iter()
-                        .find(|x| x.0 == name)
-                        .map_or(0, |x| x.1.of(nb, nw));
-                    (s..s + n).map(f).collect::<Vec<f64>>()
+                    layout::range(STATE, name, nb, nw)
+                        .map(f)
+                        .collect::<Vec<f64>>()
                 };
                 let when = |x: f64| (x >= 0.0).then_some(x);
                 let word = |name: &str| {
                     words[WORDS.len() * i + WORDS.iter().position(|w| *w == name).expect("a word")]
                 };
                 let overlap = region("d");
-                Run {
+                let run = Run {
                     end: layout::end_of(word("end")),
                     v: region("v"),
                     // displacements are tracked on pendulums only (as on the CPU)
@@ -525,7 +526,8 @@ impl Gpu {
                     t_last_release: when(at("t_release")),
                     max_overlap: at("max_overlap"),
                     max_overlap_ratio: at("max_ratio"),
-                }
+                };
+                (run, dt)
             })
             .collect())
     }
@@ -608,8 +610,7 @@ impl Backend for Gpu {
             } else {
                 self.runs::<f32>(&batch, terms, class)?
             };
-            for ((k, (ch, solver)), run) in idx.into_iter().zip(batch).zip(runs) {
-                let dt = crate::engine::row_dt(&plan(ch, solver).0.unwrap_or(UNSTEPPED));
+            for ((k, (ch, _)), (run, dt)) in idx.into_iter().zip(batch).zip(runs) {
                 out[idx_of[k]] = Some(Outcome::from_run(ch, &run, dt));
             }
         }

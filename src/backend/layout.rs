@@ -169,16 +169,21 @@ pub fn end_of(word: u32) -> End {
         .map_or(End::NonFinite, |e| e.0)
 }
 
-/// Offset of field `name` of `fields` in a scene's region.
-pub fn offset(fields: &[Field], name: &str, nb: usize, nw: usize) -> usize {
+/// Where field `name` of `fields` lies in a scene's region.
+pub fn range(fields: &[Field], name: &str, nb: usize, nw: usize) -> std::ops::Range<usize> {
     let mut at = 0;
     for (n, l) in fields {
         if *n == name {
-            return at;
+            return at..at + l.of(nb, nw);
         }
         at += l.of(nb, nw);
     }
     panic!("no field {name} in the GPU layout")
+}
+
+/// Offset of field `name` of `fields` in a scene's region.
+pub fn offset(fields: &[Field], name: &str, nb: usize, nw: usize) -> usize {
+    range(fields, name, nb, nw).start
 }
 
 /// Length of a scene's region.
