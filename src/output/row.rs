@@ -48,14 +48,8 @@ pub fn header(axes: &[String], shape: Shape) -> Vec<String> {
     h
 }
 
-/// A float as the CSV writes it: shortest round-trip text; NaN → empty.
-pub fn num(x: f64) -> String {
-    let mut s = String::new();
-    num_into(x, &mut s);
-    s
-}
-
-/// [`num`] into `s` (cleared first): no allocation once `s` has grown.
+/// A float as the CSV writes it, into `s` (cleared first; no allocation
+/// once `s` has grown): shortest round-trip text; NaN → empty.
 ///
 /// The same text as `format!("{x}")` for 0 and 1e-3 ≤ |x| < 1e7 and
 /// `format!("{x:e}")` otherwise (tested against both on millions of values),
@@ -314,7 +308,12 @@ pub fn table(name: &str, v_in: f64, v0: &[f64], o: &Outcome, pendulum: bool) -> 
 
 #[cfg(test)]
 mod tests {
-    use super::num;
+    /// `num_into` into a fresh string.
+    fn num(x: f64) -> String {
+        let mut s = String::new();
+        super::num_into(x, &mut s);
+        s
+    }
 
     #[test]
     fn numbers_round_trip() {

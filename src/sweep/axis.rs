@@ -143,16 +143,6 @@ pub enum Value {
     Text(String),
 }
 
-impl Value {
-    /// As written in the CSV column of the axis.
-    pub fn csv(&self) -> String {
-        match self {
-            Value::Num(x) => crate::output::row::num(*x),
-            Value::Text(s) => s.clone(),
-        }
-    }
-}
-
 impl std::fmt::Display for Value {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
@@ -257,16 +247,6 @@ pub fn logspace_at(start: f64, stop: f64, num: usize, i: usize) -> f64 {
     let (a, b) = (start.ln(), stop.ln());
     let step = (b - a) / (num - 1) as f64;
     (a + i as f64 * step).exp()
-}
-
-/// Evenly spaced values, start + i·step.
-pub fn linspace(start: f64, stop: f64, num: usize) -> Vec<f64> {
-    (0..num).map(|i| linspace_at(start, stop, num, i)).collect()
-}
-
-/// Geometrically spaced values between `start` and `stop` (both > 0).
-pub fn logspace(start: f64, stop: f64, num: usize) -> Vec<f64> {
-    (0..num).map(|i| logspace_at(start, stop, num, i)).collect()
 }
 
 /// Apply `param = value` to a scene as written. `base` is the validated base
@@ -381,6 +361,16 @@ mod tests {
 
     #[test]
     fn ranges_hit_both_ends_exactly() {
+        let linspace = |a, b, n| {
+            (0..n)
+                .map(|i| linspace_at(a, b, n, i))
+                .collect::<Vec<f64>>()
+        };
+        let logspace = |a, b, n| {
+            (0..n)
+                .map(|i| logspace_at(a, b, n, i))
+                .collect::<Vec<f64>>()
+        };
         let l = linspace(0.0, 2e-5, 100);
         assert_eq!((l[0], l[99], l.len()), (0.0, 2e-5, 100));
         assert_eq!(l[37], 37.0 * (2e-5 / 99.0));

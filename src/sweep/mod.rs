@@ -402,16 +402,20 @@ impl Sweep {
         }
     }
 
+    /// Each axis with its index in scene `id` (row-major, first axis
+    /// slowest), without allocating: the one place ids become axis values.
+    fn axis_indices(&self, id: u64) -> impl Iterator<Item = (&Axis, usize)> + '_ {
+        let mut stride = self.total;
+        self.axes.iter().map(move |a| {
+            let n = a.values.len() as u64;
+            stride /= n;
+            (a, ((id / stride) % n) as usize)
+        })
+    }
+
     /// Index into each axis of scene `id` (first axis slowest).
     pub fn indices(&self, id: u64) -> Vec<usize> {
-        let mut rest = id;
-        let mut idx = vec![0; self.axes.len()];
-        for (k, a) in self.axes.iter().enumerate().rev() {
-            let n = a.values.len() as u64;
-            idx[k] = (rest % n) as usize;
-            rest /= n;
-        }
-        idx
+        self.axis_indices(id).map(|(_, i)| i).collect()
     }
 
     /// The scene with id `id`, or why this combination of values is invalid.
@@ -420,7 +424,7 @@ impl Sweep {
             return Ok(self.base.clone());
         }
         let mut spec = self.scene.clone();
-        for (a, i) in self.axes.iter().zip(self.indices(id)) {
+        for (a, i) in self.axis_indices(id) {
             axis::apply(&mut spec, &self.base, &a.param, &a.values.get(i));
         }
         spec.validate()
@@ -436,11 +440,7 @@ impl Sweep {
     /// The axis columns of scene `id` to `out`, with `scratch` for number
     /// text (no allocation per row for numeric axes).
     pub fn emit_axis_fields(&self, id: u64, scratch: &mut String, out: &mut dyn FnMut(&str)) {
-        let mut stride: u64 = self.axes.iter().map(|a| a.values.len() as u64).product();
-        for a in &self.axes {
-            let n = a.values.len() as u64;
-            stride /= n;
-            let i = ((id / stride) % n) as usize;
+        for (a, i) in self.axis_indices(id) {
             match a.values.get(i) {
                 Value::Num(x) => {
                     crate::output::row::num_into(x, scratch);

@@ -17,8 +17,6 @@ use crate::output::lock::OutputLock;
 use crate::output::partial::{Opened, PartialCsv};
 use crate::output::{row, sidecar};
 
-pub use super::pipeline::BATCH;
-
 pub struct Options {
     pub out: PathBuf,
     pub resume: bool,
