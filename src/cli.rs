@@ -140,7 +140,7 @@ pub struct SlurmArgs {
 pub struct SweepArgs {
     /// Sweep TOML file.
     pub sweep: PathBuf,
-    /// Output CSV (written as FILE.partial, renamed when complete; FILE.json
+    /// Output table, CSV or Parquet (written as FILE.partial, complete under its name at the end; FILE.json
     /// beside it; FILE.lock while running). A new name or a regular file;
     /// a symlink is written through.
     #[arg(long, value_name = "FILE")]
@@ -158,12 +158,37 @@ pub struct SweepArgs {
     /// Worker threads for the CPU backend [default: all cores].
     #[arg(long, allow_negative_numbers = true)]
     pub threads: Option<i64>,
+    /// The output's format [default: parquet for a FILE ending in .parquet,
+    /// else csv].
+    #[arg(long, value_enum, value_name = "FORMAT")]
+    pub format: Option<TableKind>,
     /// Fill the `error_estimate` column: every scene runs a second time with
     /// steps twice as long (Richardson); costs about 60% more.
     #[arg(long)]
     pub error_estimate: bool,
     #[command(flatten)]
     pub solver: SolverFlags,
+}
+
+/// What a sweep table is written as.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum TableKind {
+    Csv,
+    Parquet,
+}
+
+impl TableKind {
+    /// The format `--format` names, else the one `path`'s extension names.
+    pub fn resolve(given: Option<TableKind>, path: &std::path::Path) -> TableKind {
+        given.unwrap_or_else(|| {
+            let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("");
+            if ext.eq_ignore_ascii_case("parquet") || ext.eq_ignore_ascii_case("pq") {
+                TableKind::Parquet
+            } else {
+                TableKind::Csv
+            }
+        })
+    }
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]

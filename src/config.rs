@@ -10,7 +10,9 @@
 
 use std::path::{Path, PathBuf};
 
-use crate::cli::{flag, parse_shard, BackendChoice, Format, SlurmArgs, SolverFlags, SweepArgs};
+use crate::cli::{
+    flag, parse_shard, BackendChoice, Format, SlurmArgs, SolverFlags, SweepArgs, TableKind,
+};
 use crate::engine::{simulate_chain, Chain, Model, Overrides, Silent, Solver};
 use crate::error::InputError;
 use crate::output::guard;
@@ -39,6 +41,8 @@ pub struct SweepConfig {
     pub overrides: Overrides,
     /// The precision the base scene runs in (flags and file resolved).
     pub precision: Precision,
+    /// Write Parquet (`--format`, else the extension of `--out`).
+    pub parquet: bool,
 }
 
 /// `--threads N`: 1 ..= MAX_THREADS_PER_CORE × the cores this process may use.
@@ -77,6 +81,7 @@ impl SweepConfig {
             error_estimate: a.error_estimate,
             overrides,
             precision,
+            parquet: TableKind::resolve(a.format, &a.out) == TableKind::Parquet,
         })
     }
 }

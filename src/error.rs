@@ -213,3 +213,9 @@ mod tests {
         assert_eq!(closest("zzzzzzzz", keys), None);
     }
 }
+
+/// A run stopped on request (Ctrl-C in Python): the rows so far are kept in
+/// the partial file, which `--resume` continues.
+#[derive(Debug, thiserror::Error)]
+#[error("interrupted")]
+pub struct Interrupted;

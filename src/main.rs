@@ -8,10 +8,7 @@ use std::process::ExitCode;
 use anyhow::Context;
 use clap::Parser;
 
-use hertz_cradle::backend::cpu::Cpu;
-use hertz_cradle::backend::gpu::{find_adapter, Gpu, Want};
-use hertz_cradle::backend::Backend;
-use hertz_cradle::cli::{flag, BackendChoice, Cli, Command, Format};
+use hertz_cradle::cli::{Cli, Command, Format};
 use hertz_cradle::config::{slurm_plan, RunConfig, SweepConfig};
 use hertz_cradle::engine::{simulate_chain, Silent};
 use hertz_cradle::output::guard;
@@ -19,7 +16,7 @@ use hertz_cradle::output::lock::OutputLock;
 use hertz_cradle::output::merge::merge;
 use hertz_cradle::output::{row, trace::TraceWriter};
 use hertz_cradle::plot;
-use hertz_cradle::scene::{builtin, Precision};
+use hertz_cradle::scene::builtin;
 use hertz_cradle::sweep::run::Options;
 use hertz_cradle::InputError;
 
@@ -42,44 +39,6 @@ fn main() -> ExitCode {
     }
 }
 
-/// `auto`: a hardware GPU that can run `precision`, else the CPU (said on
-/// stderr); `gpu`: any adapter, software ones included, or an error.
-fn choose_backend(choice: BackendChoice, precision: Precision) -> anyhow::Result<Box<dyn Backend>> {
-    let want = match choice {
-        BackendChoice::Cpu => return Ok(Box::new(Cpu)),
-        BackendChoice::Auto => Want::Hardware,
-        BackendChoice::Gpu => Want::Any,
-    };
-    let Some(adapter) = find_adapter(want) else {
-        if choice == BackendChoice::Gpu {
-            return Err(flag("--backend", "gpu", "no GPU adapter found (not even a software one such as Mesa lavapipe); use --backend cpu").into());
-        }
-        eprintln!(
-            "cradle: no hardware GPU found; running on the CPU ({})",
-            Cpu.adapter()
-        );
-        return Ok(Box::new(Cpu));
-    };
-    let gpu = Gpu::new(&adapter)?;
-    if precision == Precision::F64 && !gpu.has_f64() {
-        if choice == BackendChoice::Gpu {
-            return Err(flag(
-                "--backend",
-                "gpu",
-                &format!(
-                    "{} has no 64-bit floats (SHADER_F64): add --precision f32",
-                    gpu.adapter()
-                ),
-            )
-            .into());
-        }
-        eprintln!("cradle: {} has no 64-bit floats; running f64 on the CPU ({}); --precision f32 would use the GPU", gpu.adapter(), Cpu.adapter());
-        return Ok(Box::new(Cpu));
-    }
-    eprintln!("cradle: backend gpu: {}", gpu.adapter());
-    Ok(Box::new(gpu))
-}
-
 fn is_broken_pipe(e: &anyhow::Error) -> bool {
     e.chain().any(|c| {
         c.downcast_ref::<std::io::Error>()
@@ -98,7 +57,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                     .num_threads(t)
                     .build_global()?;
             }
-            let backend = choose_backend(cfg.backend, cfg.precision)?;
+            let backend = hertz_cradle::backend::choose(cfg.backend, cfg.precision)?;
             let backend = backend.as_ref();
             let opts = Options {
                 out: cfg.out.clone(),
@@ -107,6 +66,8 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 overrides: cfg.overrides.clone(),
                 command: std::env::args().collect(),
                 error_estimate: cfg.error_estimate,
+                parquet: cfg.parquet,
+                cancel: None,
             };
             let s = hertz_cradle::sweep::run::run(&cfg.sweep, &opts, backend)?;
             let out = cfg.out_given.display();

@@ -653,3 +653,101 @@ fn run_and_slurm_apply_the_same_rules_as_sweep() {
     );
     assert!(!d.join("sl").exists(), "nothing written for a refused plan");
 }
+
+/// Parquet output keeps every promise of the CSV: a disk that fills or a
+/// kill -9 loses no whole segment, `--resume` finishes the same bytes as an
+/// uninterrupted run (segments end at fixed ids), and the values are the
+/// CSV's exactly (compared through their text, the CSV's shortest
+/// round-trip form: equal text is equal bits).
+#[test]
+fn parquet_output_survives_disk_full_and_kills_and_holds_the_csv_values() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let sw = write_sweep(d, 14, 10_000); // 140,000 scenes: 3 segments
+    let reference = d.join("ref.parquet");
+    ok(&on_cpu(&sw, &reference, &[]));
+    let want = fs::read(&reference).unwrap();
+    assert_eq!(&want[..4], b"PAR1");
+    let csv = d.join("ref.csv");
+    ok(&on_cpu(&sw, &csv, &[]));
+    let (header, rows) = hertz_cradle::output::parquet_file::read_text(&reference).unwrap();
+    let mut r = csv::Reader::from_path(&csv).unwrap();
+    assert_eq!(r.headers().unwrap().iter().collect::<Vec<_>>(), header);
+    let mut n = 0;
+    for (rec, row) in r.records().zip(&rows) {
+        assert_eq!(rec.unwrap().iter().collect::<Vec<_>>(), *row);
+        n += 1;
+    }
+    assert_eq!((n, rows.len()), (140_000, 140_000));
+
+    // Disk full while appending the second segment.
+    let out = d.join("full.parquet");
+    let o = cradle()
+        .args(on_cpu(&sw, &out, &[]))
+        .env("CRADLE_FAILPOINT", "append:2")
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(stderr(&o).contains("No space left on device"));
+    assert!(!out.exists());
+    ok(&on_cpu(&sw, &out, &["--resume"]));
+    assert_eq!(fs::read(&out).unwrap(), want);
+
+    // Killed while it writes the second segment (of three, ~5 MB each),
+    // then resumed.
+    let out = d.join("o.parquet");
+    let partial = d.join("o.parquet.partial");
+    let mut child = Std::new(assert_cmd::cargo::cargo_bin("cradle"))
+        .args(on_cpu(&sw, &out, &["--threads", "1"]))
+        .spawn()
+        .unwrap();
+    let t0 = Instant::now();
+    let at = want.len() as u64 / 2;
+    while fs::metadata(&partial).map_or(0, |m| m.len()) < at
+        && t0.elapsed() < Duration::from_secs(60)
+        && child.try_wait().unwrap().is_none()
+    {
+        std::thread::sleep(Duration::from_millis(2));
+    }
+    let killed = child.try_wait().unwrap().is_none();
+    child.kill().unwrap();
+    child.wait().unwrap();
+    assert!(
+        killed && !out.exists(),
+        "the run ended before it could be killed"
+    );
+    ok(&on_cpu(&sw, &out, &["--resume"]));
+    assert_eq!(fs::read(&out).unwrap(), want);
+    let meta = sidecar(&d.join("o.parquet.json"));
+    assert_eq!(meta["resumed_from_row"].as_u64().unwrap() % 65_536, 0);
+    assert!(meta["resumed_from_row"].as_u64().unwrap() > 0);
+    assert_eq!(
+        meta["scenes_ok"].as_u64().unwrap() + meta["scenes_not_ok"].as_u64().unwrap(),
+        140_000
+    );
+    // Shards merge into the unsharded file's rows; a CSV part is refused.
+    for k in 1..=3 {
+        let part = d.join(format!("p{k}.parquet"));
+        ok(&on_cpu(&sw, &part, &["--shard", &format!("{k}/3")]));
+    }
+    let merged = d.join("m.parquet");
+    let parts: Vec<PathBuf> = (1..=3).map(|k| d.join(format!("p{k}.parquet"))).collect();
+    let mut args = vec!["merge".to_string()];
+    args.extend(parts.iter().map(|p| s(p).to_string()));
+    args.extend(["--out".into(), s(&merged).into()]);
+    ok(&args.iter().map(String::as_str).collect::<Vec<_>>());
+    assert_eq!(
+        hertz_cradle::output::parquet_file::read_text(&merged).unwrap(),
+        (header, rows)
+    );
+    refused(
+        &[
+            "merge",
+            s(&parts[0]),
+            s(&csv),
+            "--out",
+            s(&d.join("x.parquet")),
+        ],
+        "merge parts of one format",
+    );
+}

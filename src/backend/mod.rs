@@ -5,7 +5,9 @@ pub mod cpu;
 pub mod gpu;
 pub mod layout;
 
+use crate::cli::{flag, BackendChoice};
 use crate::engine::{Chain, Outcome, Solver, Status};
+use crate::scene::Precision;
 
 /// One scene ready to integrate, or a combination of sweep values that did
 /// not make a valid scene (its row gets status `invalid`).
@@ -63,4 +65,42 @@ pub fn run_with_estimate(
         }
     }
     Ok(out)
+}
+
+/// `auto`: a hardware GPU that can run `precision`, else the CPU (said on
+/// stderr); `gpu`: any adapter, software ones included, or an error.
+pub fn choose(choice: BackendChoice, precision: Precision) -> anyhow::Result<Box<dyn Backend>> {
+    let want = match choice {
+        BackendChoice::Cpu => return Ok(Box::new(cpu::Cpu)),
+        BackendChoice::Auto => gpu::Want::Hardware,
+        BackendChoice::Gpu => gpu::Want::Any,
+    };
+    let Some(adapter) = gpu::find_adapter(want) else {
+        if choice == BackendChoice::Gpu {
+            return Err(flag("--backend", "gpu", "no GPU adapter found (not even a software one such as Mesa lavapipe); use --backend cpu").into());
+        }
+        eprintln!(
+            "cradle: no hardware GPU found; running on the CPU ({})",
+            cpu::Cpu.adapter()
+        );
+        return Ok(Box::new(cpu::Cpu));
+    };
+    let gpu = gpu::Gpu::new(&adapter)?;
+    if precision == Precision::F64 && !gpu.has_f64() {
+        if choice == BackendChoice::Gpu {
+            return Err(flag(
+                "--backend",
+                "gpu",
+                &format!(
+                    "{} has no 64-bit floats (SHADER_F64): add --precision f32",
+                    gpu.adapter()
+                ),
+            )
+            .into());
+        }
+        eprintln!("cradle: {} has no 64-bit floats; running f64 on the CPU ({}); --precision f32 would use the GPU", gpu.adapter(), cpu::Cpu.adapter());
+        return Ok(Box::new(cpu::Cpu));
+    }
+    eprintln!("cradle: backend gpu: {}", gpu.adapter());
+    Ok(Box::new(gpu))
 }

@@ -1,5 +1,6 @@
-//! `cradle merge`: join shard CSVs into one. Rows are copied byte for byte,
-//! so the merge of a sweep's shards equals the unsharded run's file.
+//! `cradle merge`: join shard CSVs (or Parquet files) into one. CSV rows are
+//! copied byte for byte, Parquet row groups still encoded, so the merge of a
+//! sweep's shards holds the unsharded run's rows.
 //!
 //! Nothing is taken on trust: every part must have its sidecar (`FILE.json`,
 //! written when the part completed), and the sidecars must agree on the sweep
@@ -16,7 +17,9 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result};
 use serde_json::Value;
 
+use super::parquet_file::{is_parquet, PartFile};
 use super::partial::{partial_path, write_atomic};
+use crate::cli::TableKind;
 use crate::error::InputError;
 
 fn first_id(line: &[u8]) -> Option<u64> {
@@ -91,6 +94,43 @@ pub fn merge(inputs: &[PathBuf], out: &Path) -> Result<u64> {
         .iter()
         .map(|p| read_part(p))
         .collect::<Result<Vec<_>>>()?;
+    let formats = parts
+        .iter()
+        .map(|p| is_parquet(&p.path))
+        .collect::<Vec<_>>();
+    if let Some(k) = formats.iter().position(|&q| q != formats[0]) {
+        return Err(bad(
+            &parts[k].path,
+            format!(
+                "is {} but {} is {}: merge parts of one format",
+                if formats[k] { "Parquet" } else { "CSV" },
+                parts[0].path.display(),
+                if formats[0] { "Parquet" } else { "CSV" },
+            ),
+        ));
+    }
+    let want = if formats[0] {
+        TableKind::Parquet
+    } else {
+        TableKind::Csv
+    };
+    if TableKind::resolve(None, out) != want {
+        return Err(InputError::Flag {
+            flag: "--out".into(),
+            value: out.display().to_string(),
+            allowed: format!(
+                "a name ending in {}: the parts are {}",
+                if formats[0] {
+                    ".parquet"
+                } else {
+                    ".csv (or any name not ending in .parquet)"
+                },
+                if formats[0] { "Parquet" } else { "CSV" }
+            ),
+        }
+        .into());
+    }
+    let parquet = formats[0];
     let fp = |p: &Part| {
         p.sidecar
             .get("fingerprint")
@@ -156,7 +196,18 @@ pub fn merge(inputs: &[PathBuf], out: &Path) -> Result<u64> {
     }
 
     let tmp = partial_path(out);
-    let r = copy_rows(&parts, &tmp);
+    let r = if parquet {
+        let files = parts
+            .iter()
+            .map(|p| PartFile {
+                path: &p.path,
+                ids: p.ids,
+            })
+            .collect::<Vec<_>>();
+        super::parquet_file::merge(&files, &tmp, &|p, what| bad(p, what))
+    } else {
+        copy_rows(&parts, &tmp)
+    };
     if r.is_err() {
         let _ = std::fs::remove_file(&tmp);
     }

@@ -1,9 +1,10 @@
-//! Writers: outcome rows (CSV and tables) and trajectories.
+//! Writers: outcome rows (CSV, Parquet and tables) and trajectories.
 
 pub mod failpoint;
 pub mod guard;
 pub mod lock;
 pub mod merge;
+pub mod parquet_file;
 pub mod partial;
 pub mod row;
 pub mod sidecar;

@@ -1,7 +1,12 @@
-//! Crash-safe CSV output: rows go to `FILE.partial` (flushed after every
-//! batch) and the file is renamed to `FILE` only when complete, so a killed
-//! run never leaves a file that looks complete. `--resume` truncates the
-//! partial file to its last complete row and continues after it.
+//! Crash-safe output: rows go to `FILE.partial` (flushed after every batch)
+//! and `FILE` appears only when complete, so a killed run never leaves a
+//! file that looks complete. `--resume` truncates the partial file to its
+//! last complete row (CSV) or segment (Parquet) and continues after it.
+//!
+//! A CSV's partial file is the CSV so far; it is renamed to `FILE` at the
+//! end. A Parquet's is a header line, the CSV header, then frames of encoded
+//! segments (`output::parquet_file`); at the end they are joined into
+//! `FILE.tmp`, which is renamed to `FILE`.
 //!
 //! What a run must share with the one it resumes is its fingerprint (sweep,
 //! shard, solver flags, version). It is kept in `FILE.partial.spec` while the
@@ -23,8 +28,22 @@ use anyhow::{Context, Result};
 use super::guard::with_suffix;
 use crate::error::InputError;
 
-pub struct PartialCsv {
+/// What a table is written as.
+#[derive(Clone, Debug)]
+pub enum TableFormat {
+    Csv,
+    /// Parquet with this Arrow schema.
+    Parquet(arrow_schema::SchemaRef),
+}
+
+/// First line of a Parquet output's partial file.
+const PARQUET_PARTIAL_MAGIC: &[u8] = b"cradle parquet segments 1\n";
+
+pub struct Partial {
     pub path: PathBuf,
+    pub format: TableFormat,
+    /// Bytes before the first row (CSV) or frame (Parquet).
+    head_len: u64,
     partial: PathBuf,
     spec: PathBuf,
     fingerprint: String,
@@ -47,6 +66,7 @@ pub const COMPANIONS: &[&str] = &[
     ".json",
     ".json.tmp",
     ".lock",
+    ".tmp",
 ];
 
 pub fn partial_path(out: &Path) -> PathBuf {
@@ -59,7 +79,7 @@ fn spec_path(out: &Path) -> PathBuf {
 
 /// What `open` found.
 pub enum Opened {
-    Writing(PartialCsv),
+    Writing(Partial),
     /// `--resume` of a run whose output is already complete, made by this
     /// same sweep (the sidecar's fingerprint agrees).
     AlreadyComplete,
@@ -92,10 +112,23 @@ fn mismatch(path: &Path, what: String) -> anyhow::Error {
     .into()
 }
 
-impl PartialCsv {
-    /// Start (or, with `resume`, continue) writing `out`. `header` is the CSV
-    /// header line (with its newline) and `fingerprint` identifies the sweep.
-    pub fn open(out: &Path, header: &[u8], fingerprint: &str, resume: bool) -> Result<Opened> {
+impl Partial {
+    /// Start (or, with `resume`, continue) writing `out` as `format`.
+    /// `header` is the CSV header line (with its newline) and `fingerprint`
+    /// identifies the sweep.
+    pub fn open(
+        out: &Path,
+        format: TableFormat,
+        header: &[u8],
+        fingerprint: &str,
+        resume: bool,
+    ) -> Result<Opened> {
+        let mut head = vec![];
+        if let TableFormat::Parquet(_) = format {
+            head.extend_from_slice(PARQUET_PARTIAL_MAGIC);
+        }
+        head.extend_from_slice(header);
+        let header = &head[..];
         let partial = partial_path(out);
         let spec = spec_path(out);
         if resume && partial.exists() {
@@ -115,7 +148,10 @@ impl PartialCsv {
                 .and_then(|w| w.trim().parse::<f64>().ok())
                 .filter(|w| w.is_finite() && *w >= 0.0)
                 .unwrap_or(0.0);
-            let (keep, rows, ok) = complete_prefix(&partial, header)?;
+            let (keep, rows, ok) = match format {
+                TableFormat::Csv => complete_prefix(&partial, header)?,
+                TableFormat::Parquet(_) => complete_frames(&partial, header)?,
+            };
             let mut file = OpenOptions::new()
                 .read(true)
                 .write(true)
@@ -123,8 +159,10 @@ impl PartialCsv {
                 .with_context(|| format!("cannot open {}", partial.display()))?;
             file.set_len(keep)?;
             file.seek(SeekFrom::End(0))?;
-            return Ok(Opened::Writing(PartialCsv {
+            return Ok(Opened::Writing(Partial {
                 path: out.to_path_buf(),
+                format,
+                head_len: header.len() as u64,
                 partial,
                 spec,
                 fingerprint: fingerprint.to_string(),
@@ -157,8 +195,10 @@ impl PartialCsv {
         file.write_all(header)
             .and_then(|_| file.sync_data())
             .with_context(|| format!("cannot write {}", partial.display()))?;
-        Ok(Opened::Writing(PartialCsv {
+        Ok(Opened::Writing(Partial {
             path: out.to_path_buf(),
+            format,
+            head_len: header.len() as u64,
             partial,
             spec,
             fingerprint: fingerprint.to_string(),
@@ -169,7 +209,8 @@ impl PartialCsv {
         }))
     }
 
-    /// Append complete rows and push them to the file.
+    /// Append complete rows (CSV) or a whole frame (Parquet) and push them
+    /// to the file.
     pub fn append(&mut self, rows: &[u8]) -> Result<()> {
         crate::output::failpoint::check("append")
             .and_then(|_| self.file.write_all(rows))
@@ -187,24 +228,40 @@ impl PartialCsv {
     }
 
     /// All rows written: write the sidecar (`sidecar`: its path and text),
-    /// then make the CSV visible under its final name. The sidecar goes
-    /// first: if the run dies between the two renames, the `.partial` is
+    /// then make the table visible under its final name. The sidecar goes
+    /// first: if the run dies before the final rename, the `.partial` is
     /// still there and `--resume` finishes it.
     pub fn finish(self, sidecar: (&Path, &[u8])) -> Result<()> {
         self.file
             .sync_all()
             .with_context(|| format!("cannot write {}", self.partial.display()))?;
         drop(self.file);
+        let done = match &self.format {
+            TableFormat::Csv => self.partial.clone(),
+            TableFormat::Parquet(schema) => {
+                let tmp = with_suffix(&self.path, TMP);
+                let r =
+                    super::parquet_file::join_partial(&self.partial, self.head_len, &tmp, schema);
+                if r.is_err() {
+                    let _ = fs::remove_file(&tmp);
+                }
+                r?;
+                tmp
+            }
+        };
         crate::output::failpoint::check("sidecar")
             .with_context(|| format!("cannot write {}", sidecar.0.display()))?;
         write_atomic(sidecar.0, sidecar.1)?;
-        fs::rename(&self.partial, &self.path).with_context(|| {
+        fs::rename(&done, &self.path).with_context(|| {
             format!(
                 "cannot rename {} to {}",
-                self.partial.display(),
+                done.display(),
                 self.path.display()
             )
         })?;
+        if done != self.partial {
+            let _ = fs::remove_file(&self.partial);
+        }
         let _ = fs::remove_file(&self.spec);
         Ok(())
     }
@@ -243,4 +300,27 @@ fn complete_prefix(partial: &Path, header: &[u8]) -> Result<(u64, u64, u64)> {
         }
     }
     Ok((keep, rows, ok))
+}
+
+/// Like [`complete_prefix`] for a Parquet partial file: the length of its
+/// head and whole frames, their rows and `ok` rows.
+fn complete_frames(partial: &Path, head: &[u8]) -> Result<(u64, u64, u64)> {
+    let mut f =
+        File::open(partial).with_context(|| format!("cannot read {}", partial.display()))?;
+    let mut found = vec![0u8; head.len()];
+    if std::io::Read::read_exact(&mut f, &mut found).is_err() || found != head {
+        return Err(mismatch(
+            partial,
+            "cannot resume: its header differs from this sweep's; run without --resume to start over".into(),
+        ));
+    }
+    let frames = super::parquet_file::frames(&mut f, head.len() as u64)?;
+    let keep = frames
+        .last()
+        .map_or(head.len() as u64, |fr| fr.offset + fr.len);
+    Ok((
+        keep,
+        frames.iter().map(|fr| fr.rows).sum(),
+        frames.iter().map(|fr| fr.ok).sum(),
+    ))
 }

@@ -194,71 +194,113 @@ fn few_exact_digits(x: f64) -> bool {
 /// rather than numbers that look like results.
 pub fn fields(id: u64, axis_values: &[String], o: &Outcome, shape: Shape) -> Vec<String> {
     let mut r = Vec::with_capacity(14 + axis_values.len() + 2 * shape.width);
-    let axes = |f: &mut dyn FnMut(&str)| axis_values.iter().for_each(|a| f(a));
+    let axes = |f: &mut dyn FnMut(Field)| axis_values.iter().for_each(|a| f(Field::Text(a)));
     emit(id, axes, o, shape, &mut String::new(), &mut |x| {
         r.push(x.to_string())
     });
     r
 }
 
-/// The fields of one row, in order, to `out` (what [`fields`] collects; a
-/// sweep writes them straight into its CSV buffer). `axes` emits the axis
-/// columns; `scratch` is reused for number text.
+/// One field of a row, typed: what a Parquet column stores and what the CSV
+/// prints ([`emit`]). `Num(NaN)` and `Null` are both missing (an empty CSV
+/// cell, a Parquet null).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Field<'a> {
+    Int(u64),
+    Num(f64),
+    Text(&'a str),
+    Null,
+}
+
+/// The type of a column (its Parquet/Arrow type: `Int` → Int64, `Num` →
+/// Float64, `Text` → UTF-8, `Status` → a dictionary-encoded string).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ColType {
+    Int,
+    Num,
+    Text,
+    Status,
+}
+
+/// Column types of a table with axis columns of `axes` types and `shape`,
+/// parallel to [`header`].
+pub fn column_types(axes: &[ColType], shape: Shape) -> Vec<ColType> {
+    use ColType::*;
+    let mut t = vec![Int];
+    t.extend_from_slice(axes);
+    t.push(Status);
+    t.extend(std::iter::repeat_n(
+        Num,
+        shape.width * (1 + shape.pendulum as usize),
+    ));
+    t.extend([Int, Num, Num, Num, Int, Int, Num, Num, Num, Num, Num, Num]);
+    t
+}
+
+/// The fields of one row, in order, as text to `out` (what [`fields`]
+/// collects; a sweep writes them straight into its CSV buffer). `axes` emits
+/// the axis columns; `scratch` is reused for number text.
 pub fn emit(
     id: u64,
-    axes: impl FnOnce(&mut dyn FnMut(&str)),
+    axes: impl FnOnce(&mut dyn FnMut(Field)),
     o: &Outcome,
     shape: Shape,
     scratch: &mut String,
     out: &mut dyn FnMut(&str),
 ) {
-    use std::fmt::Write;
+    emit_fields(id, axes, o, shape, &mut |f| {
+        use std::fmt::Write;
+        match f {
+            Field::Int(x) => {
+                scratch.clear();
+                let _ = write!(scratch, "{x}");
+                out(scratch)
+            }
+            Field::Num(x) => {
+                num_into(x, scratch);
+                out(scratch)
+            }
+            Field::Text(t) => out(t),
+            Field::Null => out(""),
+        }
+    });
+}
+
+/// The fields of one row, in order and typed, to `out`.
+pub fn emit_fields(
+    id: u64,
+    axes: impl FnOnce(&mut dyn FnMut(Field)),
+    o: &Outcome,
+    shape: Shape,
+    out: &mut dyn FnMut(Field),
+) {
     let garbage = o.status == Status::NonFinite;
-    let int = |x: u64, s: &mut String, out: &mut dyn FnMut(&str)| {
-        s.clear();
-        let _ = write!(s, "{x}");
-        out(s);
-    };
-    let state = |x: f64, s: &mut String, out: &mut dyn FnMut(&str)| {
-        if garbage {
-            out("")
-        } else {
-            num_into(x, s);
-            out(s)
-        }
-    };
-    int(id, scratch, out);
+    let state = |x: f64| if garbage { Field::Null } else { Field::Num(x) };
+    out(Field::Int(id));
     axes(out);
-    out(o.status.name());
+    out(Field::Text(o.status.name()));
     for i in 0..shape.width {
-        match o.v.get(i) {
-            Some(&v) => state(v, scratch, out),
-            None => out(""),
-        }
+        out(o.v.get(i).map_or(Field::Null, |&v| state(v)));
     }
     if shape.pendulum {
         for i in 0..shape.width {
-            match o.x.get(i) {
-                Some(&x) => state(x, scratch, out),
-                None => out(""),
-            }
+            out(o.x.get(i).map_or(Field::Null, |&x| state(x)));
         }
     }
     if o.status == Status::Invalid || garbage {
-        out("")
+        out(Field::Null)
     } else {
-        int(o.ejected as u64, scratch, out)
+        out(Field::Int(o.ejected as u64))
     }
     for x in [o.energy_error, o.momentum_error, o.max_overlap_m] {
-        state(x, scratch, out);
+        out(state(x));
     }
-    int(o.steps, scratch, out);
-    int(o.contacts, scratch, out);
-    state(o.energy_left, scratch, out);
-    state(o.energy_last, scratch, out);
+    out(Field::Int(o.steps));
+    out(Field::Int(o.contacts));
+    out(state(o.energy_left));
+    out(state(o.energy_last));
     for x in [o.t_contact, o.t_release, o.dt, o.error_estimate] {
-        num_into(x, scratch);
-        out(scratch);
+        out(Field::Num(x));
     }
 }
 

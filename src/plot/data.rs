@@ -1,4 +1,5 @@
-//! A CSV table read for plotting: named columns of numbers (empty → NaN).
+//! A table (CSV or Parquet) read for plotting: named columns of numbers
+//! (empty → NaN).
 
 use std::path::{Path, PathBuf};
 
@@ -19,6 +20,18 @@ fn data_err(path: &Path, what: impl Into<String>) -> InputError {
 
 impl Table {
     pub fn read(path: &Path) -> Result<Table, InputError> {
+        if crate::output::parquet_file::is_parquet(path) {
+            let (header, rows) = crate::output::parquet_file::read_text(path)
+                .map_err(|e| data_err(path, format!("not a readable Parquet table: {e:#}")))?;
+            if rows.is_empty() {
+                return Err(data_err(path, "has no rows"));
+            }
+            return Ok(Table {
+                path: path.to_path_buf(),
+                header,
+                rows,
+            });
+        }
         let mut r = csv::ReaderBuilder::new()
             .flexible(false)
             .from_path(path)

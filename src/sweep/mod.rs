@@ -13,6 +13,7 @@ use toml::Spanned;
 
 use crate::engine::{Overrides, Solver};
 use crate::error::{InputError, Source};
+use crate::output::row::{ColType, Field};
 use crate::scene::spec::RawScene;
 use crate::scene::{Scene, SceneSpec};
 pub use axis::{Param, Value, Values};
@@ -433,22 +434,47 @@ impl Sweep {
     /// The axis columns of scene `id`, as the CSV writes them.
     pub fn axis_fields(&self, id: u64) -> Vec<String> {
         let mut v = Vec::with_capacity(self.axes.len());
-        self.emit_axis_fields(id, &mut String::new(), &mut |s| v.push(s.to_string()));
+        let mut s = String::new();
+        self.emit_axis_values(id, &mut |f| match f {
+            Field::Num(x) => {
+                crate::output::row::num_into(x, &mut s);
+                v.push(s.clone())
+            }
+            Field::Text(t) => v.push(t.to_string()),
+            Field::Int(x) => v.push(x.to_string()),
+            Field::Null => v.push(String::new()),
+        });
         v
     }
 
-    /// The axis columns of scene `id` to `out`, with `scratch` for number
-    /// text (no allocation per row for numeric axes).
-    pub fn emit_axis_fields(&self, id: u64, scratch: &mut String, out: &mut dyn FnMut(&str)) {
+    /// The axis columns of scene `id` to `out`, typed (no allocation per row
+    /// for numeric axes). Numbers are `Num` on every axis (an integer axis
+    /// too: its CSV text is the number's), text `Text`.
+    pub fn emit_axis_values(&self, id: u64, out: &mut dyn FnMut(Field)) {
         for (a, i) in self.axis_indices(id) {
             match a.values.get(i) {
-                Value::Num(x) => {
-                    crate::output::row::num_into(x, scratch);
-                    out(scratch)
-                }
-                Value::Text(t) => out(&t),
+                Value::Num(x) => out(Field::Num(x)),
+                Value::Text(t) => out(Field::Text(&t)),
             }
         }
+    }
+
+    /// The type of each axis column: integer params are integers, `glue`
+    /// text, every other param a number.
+    pub fn axis_types(&self) -> Vec<ColType> {
+        self.axes
+            .iter()
+            .map(|a| match a.param.kind {
+                axis::Kind::Integer => ColType::Int,
+                axis::Kind::Glue => ColType::Text,
+                _ => ColType::Num,
+            })
+            .collect()
+    }
+
+    /// The type of every column, parallel to the header.
+    pub fn column_types(&self) -> Vec<ColType> {
+        crate::output::row::column_types(&self.axis_types(), self.shape())
     }
 
     pub fn axis_names(&self) -> Vec<String> {

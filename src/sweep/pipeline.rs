@@ -1,4 +1,5 @@
-//! The sweep pipeline: ids → jobs → backend → CSV bytes, with no idle stage.
+//! The sweep pipeline: ids → jobs → backend → rows (CSV bytes or Arrow
+//! record batches), with no idle stage.
 //!
 //! The id range is cut into batches. One *lane* per worker thread takes the
 //! next batch, builds its jobs, runs them on the backend and formats their
@@ -12,7 +13,9 @@
 //! (rayon `yield_now`) instead of sleeping.
 //!
 //! Rows are formatted the same way whatever the lane, batch or thread count,
-//! so the file is byte-identical across them (tested).
+//! so the file is byte-identical across them (tested). For Parquet the lanes
+//! build record batches and the writer encodes them into segments
+//! (`output::parquet_file`), whose boundaries depend only on the id range.
 
 use std::collections::BTreeMap;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
@@ -25,7 +28,8 @@ use super::run::Options;
 use super::Sweep;
 use crate::backend::{run_with_estimate, Backend, Job};
 use crate::engine::Status;
-use crate::output::partial::PartialCsv;
+use crate::output::parquet_file::{Columns, Segment, SEGMENT_ROWS};
+use crate::output::partial::{Partial, TableFormat};
 use crate::output::row;
 
 /// Scenes per batch on the CPU: the unit of work of a lane and of a backend
@@ -74,12 +78,18 @@ impl Stages {
     }
 }
 
-/// One finished batch: its first id, its rows as CSV bytes, how many are ok.
+/// Rows of a finished batch, as the output wants them.
+enum Rows {
+    Csv(Vec<u8>),
+    Arrow(arrow_array::RecordBatch),
+}
+
+/// One finished batch: its first id, its rows, how many are ok.
 struct Done {
     first: u64,
     n: u64,
     ok: u64,
-    bytes: Vec<u8>,
+    rows: Rows,
 }
 
 /// At most `n` holders at a time (backend calls of a backend that limits them).
@@ -103,12 +113,13 @@ impl Gate {
     }
 }
 
-/// Jobs, outcomes and CSV bytes of the scenes `first .. end`.
+/// Jobs, outcomes and rows of the scenes `first .. end`.
 fn batch(
     sweep: &Sweep,
     opts: &Options,
     backend: &dyn Backend,
     gate: &Gate,
+    format: &TableFormat,
     (first, end): (u64, u64),
     st: &mut Stages,
 ) -> Result<Done> {
@@ -120,24 +131,35 @@ fn batch(
     let outcomes = gate.with(|| run_with_estimate(backend, &jobs, opts.error_estimate))?;
     drop(jobs);
     let t2 = Instant::now();
-    let mut bytes = Vec::with_capacity(256 * outcomes.len());
-    let mut ok = 0;
-    let mut scratch = String::with_capacity(32);
-    let mut axis_scratch = String::with_capacity(32);
     let shape = sweep.shape();
-    for (i, o) in (first..).zip(&outcomes) {
-        let axes = |f: &mut dyn FnMut(&str)| sweep.emit_axis_fields(i, &mut axis_scratch, f);
-        let mut sep = false;
-        row::emit(i, axes, o, shape, &mut scratch, &mut |field| {
-            if sep {
-                bytes.push(b',');
+    let ok = outcomes.iter().filter(|o| o.status == Status::Ok).count() as u64;
+    let rows = match format {
+        TableFormat::Csv => {
+            let mut bytes = Vec::with_capacity(256 * outcomes.len());
+            let mut scratch = String::with_capacity(32);
+            for (i, o) in (first..).zip(&outcomes) {
+                let axes = |f: &mut dyn FnMut(row::Field)| sweep.emit_axis_values(i, f);
+                let mut sep = false;
+                row::emit(i, axes, o, shape, &mut scratch, &mut |field| {
+                    if sep {
+                        bytes.push(b',');
+                    }
+                    sep = true;
+                    row::push_csv_field(&mut bytes, field);
+                });
+                bytes.push(b'\n');
             }
-            sep = true;
-            row::push_csv_field(&mut bytes, field);
-        });
-        bytes.push(b'\n');
-        ok += (o.status == Status::Ok) as u64;
-    }
+            Rows::Csv(bytes)
+        }
+        TableFormat::Parquet(schema) => {
+            let mut cols = Columns::new(schema, &sweep.column_types(), outcomes.len());
+            for (i, o) in (first..).zip(&outcomes) {
+                let axes = |f: &mut dyn FnMut(row::Field)| sweep.emit_axis_values(i, f);
+                row::emit_fields(i, axes, o, shape, &mut |field| cols.push(field));
+            }
+            Rows::Arrow(cols.finish()?)
+        }
+    };
     let t3 = Instant::now();
     st.jobs += (t1 - t).as_secs_f64();
     st.integration += (t2 - t1).as_secs_f64();
@@ -146,7 +168,7 @@ fn batch(
         first,
         n: end - first,
         ok,
-        bytes,
+        rows,
     })
 }
 
@@ -158,11 +180,16 @@ pub fn stream(
     opts: &Options,
     backend: &dyn Backend,
     (lo, hi): (u64, u64),
-    out: PartialCsv,
+    out: Partial,
     progress: &(dyn Fn(u64) + Sync),
-    save: &(dyn Fn(&PartialCsv) -> Result<()> + Sync),
-) -> Result<(u64, u64, PartialCsv, Stages)> {
-    let batch_size = backend.batch_size().max(1);
+    save: &(dyn Fn(&Partial) -> Result<()> + Sync),
+) -> Result<(u64, u64, Partial, Stages)> {
+    let mut batch_size = backend.batch_size().max(1);
+    if let TableFormat::Parquet(_) = out.format {
+        // A power of two ≤ a segment: no batch straddles two segments.
+        batch_size = (1u64 << batch_size.ilog2()).min(SEGMENT_ROWS);
+    }
+    let format = out.format.clone();
     let ahead = (AHEAD_ROWS / batch_size).max(2);
     let n_batches = (hi - lo).div_ceil(batch_size);
     let lanes = rayon::current_num_threads().clamp(1, n_batches.max(1) as usize);
@@ -180,10 +207,14 @@ pub fn stream(
     });
     let (tx, rx) = mpsc::channel::<Result<Done>>();
 
-    std::thread::scope(|sc| -> Result<(u64, u64, PartialCsv, Stages)> {
+    std::thread::scope(|sc| -> Result<(u64, u64, Partial, Stages)> {
         let (written, abort) = (&written, &abort);
-        let writer = sc.spawn(move || -> Result<(u64, u64, PartialCsv, f64)> {
+        let writer = sc.spawn(move || -> Result<(u64, u64, Partial, f64)> {
             let mut out = out;
+            let mut segment = match &out.format {
+                TableFormat::Parquet(schema) => Some(Segment::new(schema.clone())),
+                TableFormat::Csv => None,
+            };
             let (mut ok, mut done, mut writing) = (0u64, 0u64, 0.0);
             let mut waiting: BTreeMap<u64, Done> = BTreeMap::new();
             let mut saved = Instant::now();
@@ -202,7 +233,23 @@ pub fn stream(
                 }
                 while let Some(d) = waiting.remove(&expect) {
                     let t = Instant::now();
-                    if let Err(e) = out.append(&d.bytes) {
+                    let r = match (&d.rows, segment.as_mut()) {
+                        (Rows::Csv(bytes), _) => out.append(bytes),
+                        (Rows::Arrow(b), Some(seg)) => seg.write(b, d.ok).and_then(|_| {
+                            // Segments end at fixed ids: lo + k·SEGMENT_ROWS, and at hi.
+                            let end = d.first + d.n;
+                            if (end - lo).is_multiple_of(SEGMENT_ROWS) || end == hi {
+                                match seg.take_frame()? {
+                                    Some(frame) => out.append(&frame),
+                                    None => Ok(()),
+                                }
+                            } else {
+                                Ok(())
+                            }
+                        }),
+                        (Rows::Arrow(_), None) => unreachable!("record batches only for Parquet"),
+                    };
+                    if let Err(e) = r {
                         abort.store(true, Ordering::SeqCst);
                         return Err(e);
                     }
@@ -231,6 +278,15 @@ pub fn stream(
                     if abort.load(Ordering::SeqCst) {
                         break;
                     }
+                    if opts
+                        .cancel
+                        .as_ref()
+                        .is_some_and(|c| c.load(Ordering::SeqCst))
+                    {
+                        let _ = tx.send(Err(crate::error::Interrupted.into()));
+                        abort.store(true, Ordering::SeqCst);
+                        break;
+                    }
                     let b = next.fetch_add(1, Ordering::SeqCst);
                     if b >= n_batches {
                         break;
@@ -251,6 +307,7 @@ pub fn stream(
                         opts,
                         backend,
                         &gate,
+                        &format,
                         (first, (first + batch_size).min(hi)),
                         &mut st,
                     );

@@ -14,7 +14,7 @@ use crate::backend::{Backend, Job};
 use crate::engine::{Chain, Overrides, Solver};
 use crate::error::InputError;
 use crate::output::lock::OutputLock;
-use crate::output::partial::{Opened, PartialCsv};
+use crate::output::partial::{Opened, Partial, TableFormat};
 use crate::output::{row, sidecar};
 
 pub struct Options {
@@ -26,6 +26,11 @@ pub struct Options {
     pub command: Vec<String>,
     /// Add a per-scene error estimate (a second, coarse run of every scene).
     pub error_estimate: bool,
+    /// Write Parquet instead of CSV.
+    pub parquet: bool,
+    /// Set to stop the run early (an interrupt): the rows so far stay in the
+    /// partial file, which `--resume` continues.
+    pub cancel: Option<std::sync::Arc<std::sync::atomic::AtomicBool>>,
 }
 
 #[derive(Debug, Default)]
@@ -108,6 +113,11 @@ impl Sweep {
     pub fn header(&self) -> Vec<String> {
         row::header(&self.axis_names(), self.shape())
     }
+
+    /// The Arrow schema of this sweep's table (its Parquet output).
+    pub fn arrow_schema(&self) -> arrow_schema::SchemaRef {
+        crate::output::parquet_file::schema(&self.header(), &self.column_types())
+    }
 }
 
 pub fn run(sweep: &Sweep, opts: &Options, backend: &dyn Backend) -> Result<Summary> {
@@ -128,7 +138,12 @@ pub fn run(sweep: &Sweep, opts: &Options, backend: &dyn Backend) -> Result<Summa
         w.write_record(sweep.header())?;
         w.flush()?;
     }
-    let out = match PartialCsv::open(&opts.out, &header, &fingerprint, opts.resume)? {
+    let format = if opts.parquet {
+        TableFormat::Parquet(sweep.arrow_schema())
+    } else {
+        TableFormat::Csv
+    };
+    let out = match Partial::open(&opts.out, format, &header, &fingerprint, opts.resume)? {
         Opened::AlreadyComplete => {
             return Ok(Summary {
                 already_complete: true,
