@@ -63,10 +63,19 @@ pub fn threads(n: i64) -> Result<usize, InputError> {
 
 impl SweepConfig {
     pub fn from_args(a: &SweepArgs) -> Result<SweepConfig, InputError> {
+        Self::from_args_and(a, None)
+    }
+
+    /// As [`Self::from_args`], with the sweep already read (`Some`: a sweep
+    /// given as text, as the Python module allows) instead of `a.sweep`.
+    pub fn from_args_and(a: &SweepArgs, sweep: Option<Sweep>) -> Result<SweepConfig, InputError> {
         let overrides = a.solver.overrides()?;
         let shard = a.shard.as_deref().map(parse_shard).transpose()?;
         let threads = a.threads.map(threads).transpose()?;
-        let sweep = Sweep::load(&a.sweep)?;
+        let sweep = match sweep {
+            Some(s) => s,
+            None => Sweep::load(&a.sweep)?,
+        };
         sweep.check_overrides(&overrides)?;
         let out = guard::output("--out", &a.out, &sweep.inputs, COMPANIONS)?;
         let precision = Solver::resolve(&sweep.base, &overrides)?.precision;
@@ -104,6 +113,28 @@ pub struct RunConfig {
 }
 
 impl RunConfig {
+    /// Run the scene, writing its trace if one was asked for.
+    pub fn execute(&self) -> anyhow::Result<crate::engine::Outcome> {
+        use anyhow::Context;
+        let (chain, solver) = (&self.chain, &self.solver);
+        Ok(match &self.trace {
+            None => simulate_chain(chain, solver, &mut Silent),
+            Some((path, every)) => {
+                let file = std::fs::File::create(path)
+                    .with_context(|| format!("cannot create trace file {}", path.display()))?;
+                let mut tw = crate::output::trace::TraceWriter::new(
+                    std::io::BufWriter::new(file),
+                    chain,
+                    *every,
+                )?;
+                let o = simulate_chain(chain, solver, &mut tw);
+                tw.finish()
+                    .with_context(|| format!("writing {}", path.display()))?;
+                o
+            }
+        })
+    }
+
     pub fn from_args(
         name: &str,
         format: Format,
@@ -111,7 +142,19 @@ impl RunConfig {
         trace_dt: Option<f64>,
         flags: &SolverFlags,
     ) -> anyhow::Result<RunConfig> {
-        let scene = Scene::load(name)?;
+        Self::from_scene(name, Scene::load(name)?, format, trace, trace_dt, flags)
+    }
+
+    /// As [`Self::from_args`] for a scene already read (`name` names it in
+    /// messages).
+    pub fn from_scene(
+        name: &str,
+        scene: Scene,
+        format: Format,
+        trace: Option<&Path>,
+        trace_dt: Option<f64>,
+        flags: &SolverFlags,
+    ) -> anyhow::Result<RunConfig> {
         let overrides = flags.overrides()?;
         Solver::check_flags_against(&scene, &overrides, name)?;
         let solver = Solver::resolve(&scene, &overrides)?;

@@ -1,23 +1,19 @@
 //! `cradle`: the command-line front end. `run()` does the work; `main` prints
 //! the whole error chain and exits 2 for bad input, 1 for anything else.
 
-use std::fs::File;
-use std::io::{BufWriter, Write};
+use std::io::Write;
 use std::process::ExitCode;
 
-use anyhow::Context;
 use clap::Parser;
 
 use hertz_cradle::cli::{Cli, Command, Format};
 use hertz_cradle::config::{slurm_plan, RunConfig, SweepConfig};
-use hertz_cradle::engine::{simulate_chain, Silent};
 use hertz_cradle::output::guard;
 use hertz_cradle::output::lock::OutputLock;
 use hertz_cradle::output::merge::merge;
-use hertz_cradle::output::{row, trace::TraceWriter};
+use hertz_cradle::output::row;
 use hertz_cradle::plot;
 use hertz_cradle::scene::builtin;
-use hertz_cradle::sweep::run::Options;
 use hertz_cradle::InputError;
 
 fn main() -> ExitCode {
@@ -52,37 +48,20 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             // Every check (flags, the sweep file, the output path, flags
             // against the file) before any work or any GPU start-up.
             let cfg = SweepConfig::from_args(&args)?;
-            if let Some(t) = cfg.threads {
-                rayon::ThreadPoolBuilder::new()
-                    .num_threads(t)
-                    .build_global()?;
-            }
-            let backend = hertz_cradle::backend::choose(cfg.backend, cfg.precision)?;
-            let backend = backend.as_ref();
-            let opts = Options {
-                out: cfg.out.clone(),
-                resume: cfg.resume,
-                shard: cfg.shard,
-                overrides: cfg.overrides.clone(),
-                command: std::env::args().collect(),
-                error_estimate: cfg.error_estimate,
-                parquet: cfg.parquet,
-                cancel: None,
-            };
-            let s = hertz_cradle::sweep::run::run(&cfg.sweep, &opts, backend)?;
+            let s =
+                hertz_cradle::sweep::run::execute(&cfg, std::env::args().collect(), true, None)?;
             let out = cfg.out_given.display();
             if s.already_complete {
                 eprintln!("cradle: {out} is already complete; nothing to resume");
             } else {
                 eprintln!(
-                    "cradle: {} scenes ({} ok, {} not ok) in {:.2} s, {:.0} scenes/s, backend {} ({}) -> {out}",
+                    "cradle: {} scenes ({} ok, {} not ok) in {:.2} s, {:.0} scenes/s, backend {} -> {out}",
                     s.scenes,
                     s.ok,
                     s.scenes - s.ok,
                     s.wall_s,
                     s.scenes as f64 / s.wall_s.max(1e-9),
-                    backend.name(),
-                    backend.adapter(),
+                    s.backend,
                 );
             }
             Ok(())
@@ -160,19 +139,8 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             solver,
         } => {
             let cfg = RunConfig::from_args(&scene, format, trace.as_deref(), trace_dt, &solver)?;
-            let (chain, solver) = (&cfg.chain, &cfg.solver);
-            let outcome = match &cfg.trace {
-                None => simulate_chain(chain, solver, &mut Silent),
-                Some((path, every)) => {
-                    let file = File::create(path)
-                        .with_context(|| format!("cannot create trace file {}", path.display()))?;
-                    let mut tw = TraceWriter::new(BufWriter::new(file), chain, *every)?;
-                    let o = simulate_chain(chain, solver, &mut tw);
-                    tw.finish()
-                        .with_context(|| format!("writing {}", path.display()))?;
-                    o
-                }
-            };
+            let outcome = cfg.execute()?;
+            let chain = &cfg.chain;
             let mut out = std::io::stdout().lock();
             match cfg.format {
                 Format::Table => write!(

@@ -28,6 +28,8 @@ pub struct Options {
     pub error_estimate: bool,
     /// Write Parquet instead of CSV.
     pub parquet: bool,
+    /// Show a progress bar (on stderr, when it is a terminal).
+    pub progress: bool,
     /// Set to stop the run early (an interrupt): the rows so far stay in the
     /// partial file, which `--resume` continues.
     pub cancel: Option<std::sync::Arc<std::sync::atomic::AtomicBool>>,
@@ -39,6 +41,42 @@ pub struct Summary {
     pub ok: u64,
     pub wall_s: f64,
     pub already_complete: bool,
+    /// The backend that ran it: its name and adapter.
+    pub backend: String,
+}
+
+/// A checked sweep, run as `cradle sweep` runs it (the CLI and the Python
+/// module both come here): the backend chosen, a pool of `--threads`
+/// workers if given, the pipeline. `command` goes into the sidecar;
+/// `cancel`, when set, stops the run early (`error::Interrupted`).
+pub fn execute(
+    cfg: &crate::config::SweepConfig,
+    command: Vec<String>,
+    progress: bool,
+    cancel: Option<std::sync::Arc<std::sync::atomic::AtomicBool>>,
+) -> Result<Summary> {
+    let backend = crate::backend::choose(cfg.backend, cfg.precision)?;
+    let opts = Options {
+        out: cfg.out.clone(),
+        resume: cfg.resume,
+        shard: cfg.shard,
+        overrides: cfg.overrides.clone(),
+        command,
+        error_estimate: cfg.error_estimate,
+        parquet: cfg.parquet,
+        progress,
+        cancel,
+    };
+    let go = || run(&cfg.sweep, &opts, backend.as_ref());
+    let mut s = match cfg.threads {
+        Some(t) => rayon::ThreadPoolBuilder::new()
+            .num_threads(t)
+            .build()?
+            .install(go)?,
+        None => go()?,
+    };
+    s.backend = format!("{} ({})", backend.name(), backend.adapter());
+    Ok(s)
 }
 
 /// Scenes sampled to estimate the cost profile of a sweep for sharding.
@@ -154,7 +192,7 @@ pub fn run(sweep: &Sweep, opts: &Options, backend: &dyn Backend) -> Result<Summa
     };
     let start_id = lo + out.rows_done;
     let (ok_before, wall_before) = (out.ok_done, out.wall_before);
-    let bar = if std::io::stderr().is_terminal() {
+    let bar = if opts.progress && std::io::stderr().is_terminal() {
         let b = indicatif::ProgressBar::new(hi - lo);
         b.set_style(
             indicatif::ProgressStyle::with_template(
@@ -218,5 +256,6 @@ pub fn run(sweep: &Sweep, opts: &Options, backend: &dyn Backend) -> Result<Summa
         ok,
         wall_s,
         already_complete: false,
+        backend: String::new(),
     })
 }

@@ -1,0 +1,193 @@
+"""Newton's cradles with Hertzian contacts, swept from Python.
+
+The engine of the ``cradle`` command line tool (Rust; GPU through wgpu, or
+every CPU core), as a module::
+
+    import hertz_cradle as hc
+    table = hc.sweep("examples/mass_gap.toml")      # a pyarrow.Table
+    df = table.to_pandas()                          # or polars.from_arrow(table)
+    outcome = hc.run("cradle-1")                    # one scene: a dict
+
+Every function checks its input exactly as ``cradle`` does and raises
+``ValueError`` with the message ``cradle`` prints (file, line, key, allowed
+range). Scenes run with the GIL released; Ctrl-C stops a sweep within a
+fraction of a second (``KeyboardInterrupt``), and a sweep written to a file
+(``out=``) is then left as ``FILE.partial``, which ``resume=True`` finishes.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from typing import Any, Dict, List, Mapping, Optional, Tuple, Union
+
+import pyarrow as pa
+import pyarrow.csv as pcsv
+import pyarrow.parquet as pq
+
+from . import _native
+
+__all__ = ["sweep", "run", "scenes", "__version__"]
+__version__: str = _native.__version__
+
+Spec = Union[str, "os.PathLike[str]", Mapping[str, Any]]
+
+_TYPES = {
+    "int64": pa.int64(),
+    "float64": pa.float64(),
+    "string": pa.string(),
+    "dictionary": pa.string(),  # read as text, then dictionary-encoded
+}
+
+
+def _document(spec: Spec, what: str) -> Tuple[Optional[str], Optional[str], bool, str]:
+    """(path, text, text_is_json, name) for a path, TOML text or a dict."""
+    if isinstance(spec, Mapping):
+        return None, json.dumps(spec, allow_nan=False), True, f"<{what} dict>"
+    if isinstance(spec, os.PathLike):
+        return os.fspath(spec), None, False, os.fspath(spec)
+    if isinstance(spec, str):
+        # TOML text has a newline or a `=`; a path or a name has neither.
+        if "\n" in spec or "=" in spec:
+            return None, spec, False, f"<{what} string>"
+        return spec, None, False, spec
+    raise TypeError(f"{what} must be a path, a TOML string or a dict, not {type(spec).__name__}")
+
+
+def _solver_args(
+    precision: Optional[str], tolerance: Optional[float], method: Optional[str], model: Optional[str]
+) -> List[str]:
+    a: List[str] = []
+    for flag, value in (
+        ("--precision", precision),
+        ("--tolerance", tolerance),
+        ("--method", method),
+        ("--model", model),
+    ):
+        if value is not None:
+            a += [flag, repr(float(value)) if flag == "--tolerance" else str(value)]
+    return a
+
+
+def _read_table(path: str, columns: List[Tuple[str, str]]) -> pa.Table:
+    """A sweep's output file as a Table with the Parquet output's types."""
+    with open(path, "rb") as f:
+        magic = f.read(4)
+    if magic == b"PAR1":
+        return pq.read_table(path, memory_map=False)
+    names = [n for n, _ in columns]
+    types = {n: _TYPES[t] for n, t in columns}
+    table = pcsv.read_csv(
+        path,
+        convert_options=pcsv.ConvertOptions(
+            column_types=types, strings_can_be_null=True, quoted_strings_can_be_null=False
+        ),
+    )
+    if table.column_names != names:
+        raise RuntimeError(f"{path}: columns {table.column_names}, expected {names}")
+    for i, (n, t) in enumerate(columns):
+        if t == "dictionary":
+            table = table.set_column(i, n, table.column(i).dictionary_encode())
+    # The Parquet output's schema: id and status are never missing.
+    fields = [
+        pa.field(n, table.schema.field(n).type, nullable=n != "id" and t != "dictionary")
+        for n, t in columns
+    ]
+    return table.cast(pa.schema(fields))
+
+
+def sweep(
+    spec: Spec,
+    *,
+    backend: str = "auto",
+    precision: Optional[str] = None,
+    tolerance: Optional[float] = None,
+    method: Optional[str] = None,
+    model: Optional[str] = None,
+    threads: Optional[int] = None,
+    progress: bool = True,
+    out: Optional[Union[str, "os.PathLike[str]"]] = None,
+    format: Optional[str] = None,
+    resume: bool = False,
+    shard: Optional[str] = None,
+    error_estimate: bool = False,
+) -> pa.Table:
+    """Run every scene of a sweep; return the outcome table.
+
+    ``spec`` is a sweep TOML file's path, TOML text, or a dict with the
+    TOML's structure (``{"scene": {...}, "axis": [{"param": "gap",
+    "linspace": [0, 2e-5, 100]}]}``); a relative ``scene = "file.toml"`` in
+    text or a dict is found from the current directory. The other arguments
+    are ``cradle sweep``'s flags: ``backend`` ("auto", "gpu", "cpu"),
+    ``precision`` ("f32", "f64"), ``tolerance``, ``method``, ``model``
+    ("hertz", "hard-sphere", "closure"), ``threads``, ``shard`` ("K/N"),
+    ``error_estimate``.
+
+    The table has exactly the CSV's columns and values (``id``, one column
+    per axis, ``status``, ``v_0`` ...), typed as in the Parquet output:
+    integers as int64, ``status`` dictionary-encoded, missing values null.
+
+    ``out`` also writes the table to that file (CSV, or Parquet for a name
+    ending in ``.parquet``; ``format`` overrides), with its JSON sidecar, as
+    the command line does; ``resume=True`` continues an interrupted run into
+    it. Without ``out`` nothing is left on disk.
+    """
+    path, text, is_json, name = _document(spec, "sweep")
+    with tempfile.TemporaryDirectory(prefix="hertz_cradle_") as tmp:
+        target = os.fspath(out) if out is not None else os.path.join(tmp, "sweep.parquet")
+        args = [path if path is not None else name, "--out", target, "--backend", backend]
+        args += _solver_args(precision, tolerance, method, model)
+        if threads is not None:
+            args += ["--threads", str(int(threads))]
+        if format is not None:
+            args += ["--format", str(format)]
+        if resume:
+            args.append("--resume")
+        if shard is not None:
+            args += ["--shard", str(shard)]
+        if error_estimate:
+            args.append("--error-estimate")
+        summary = _native.sweep(
+            args, text, is_json, name, os.getcwd(), bool(progress)
+        )
+        return _read_table(target, summary["columns"])
+
+
+def run(
+    scene: Spec,
+    *,
+    trace_dt: Optional[float] = None,
+    trace: bool = False,
+    model: str = "hertz",
+    precision: Optional[str] = None,
+    tolerance: Optional[float] = None,
+    method: Optional[str] = None,
+) -> Union[Dict[str, Any], Tuple[Dict[str, Any], pa.Table]]:
+    """Run one scene; return its outcome (a dict of the sweep row's columns).
+
+    ``scene`` is a built-in scene's name (see :func:`scenes`), a scene TOML
+    file's path, TOML text, or a dict with the TOML's structure. With
+    ``trace_dt`` (seconds of simulated time between rows) or ``trace=True``
+    (the command line's default spacing), returns ``(outcome, trace)``:
+    the trajectory (``t``, ``x_0`` ..., ``v_0`` ...; SI units) as a Table.
+    """
+    path, text, is_json, name = _document(scene, "scene")
+    args = [path if path is not None else name]
+    args += _solver_args(precision, tolerance, method, model)
+    want_trace = trace or trace_dt is not None
+    with tempfile.TemporaryDirectory(prefix="hertz_cradle_") as tmp:
+        trace_path = os.path.join(tmp, "trace.csv")
+        if want_trace:
+            args += ["--trace", trace_path]
+            if trace_dt is not None:
+                args += ["--trace-dt", repr(float(trace_dt))]
+        outcome = _native.run(args, text, is_json, name)
+        if not want_trace:
+            return outcome
+        return outcome, pcsv.read_csv(trace_path)
+
+
+def scenes() -> Dict[str, str]:
+    """The built-in scenes: name → one-line summary."""
+    return dict(_native.scenes())

@@ -1,0 +1,201 @@
+"""The Python module against the command line: same physics, same values,
+same errors; dict specs, interrupts, Parquet through pyarrow/pandas/polars.
+
+Needs the module installed (`pip install ./python`) and a `cradle` binary
+(CRADLE_BIN, else target/release/cradle or target/debug/cradle)."""
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+import pyarrow as pa
+import pyarrow.parquet as pq
+import pytest
+
+import hertz_cradle as hc
+
+ROOT = Path(__file__).resolve().parents[2]
+MASS_GAP = ROOT / "examples" / "mass_gap.toml"
+
+
+def cradle_bin():
+    env = os.environ.get("CRADLE_BIN")
+    if env:
+        return env
+    for p in ("target/release/cradle", "target/debug/cradle"):
+        if (ROOT / p).exists():
+            return str(ROOT / p)
+    pytest.skip("no cradle binary: build it (cargo build) or set CRADLE_BIN")
+
+
+def cli(*args, cwd=None):
+    return subprocess.run([cradle_bin(), *map(str, args)], capture_output=True, text=True, cwd=cwd)
+
+
+SMALL = {
+    "description": "a 3 x 4 sweep",
+    "scene": {"balls": 5, "velocity": [1.0, 0.0, 0.0, 0.0, 0.0]},
+    "axis": [
+        {"param": "mass[2]", "logspace": [0.01, 0.5, 3]},
+        {"param": "gap", "linspace": [0.0, 2e-5, 4]},
+    ],
+}
+SMALL_TOML = textwrap.dedent(
+    """\
+    description = "a 3 x 4 sweep"
+    [scene]
+    balls = 5
+    velocity = [1.0, 0.0, 0.0, 0.0, 0.0]
+    [[axis]]
+    param = "mass[2]"
+    logspace = [0.01, 0.5, 3]
+    [[axis]]
+    param = "gap"
+    linspace = [0.0, 2e-5, 4]
+    """
+)
+
+
+def test_sweep_writes_the_clis_bytes_and_returns_its_values(tmp_path):
+    ref = tmp_path / "cli.csv"
+    r = cli("sweep", MASS_GAP, "--out", ref, "--backend", "cpu")
+    assert r.returncode == 0, r.stderr
+    mine = tmp_path / "py.csv"
+    table = hc.sweep(MASS_GAP, backend="cpu", out=mine, progress=False)
+    assert mine.read_bytes() == ref.read_bytes()
+    assert json.loads((tmp_path / "py.csv.json").read_text())["ids"] == [0, 10000]
+    # The returned table: the CSV's columns, typed, the CLI's Parquet values.
+    ref_pq = tmp_path / "cli.parquet"
+    assert cli("sweep", MASS_GAP, "--out", ref_pq, "--backend", "cpu").returncode == 0
+    want = pq.read_table(ref_pq)
+    assert table.equals(want)
+    assert table.column_names == ref.read_text().splitlines()[0].split(",")
+    assert table.schema.field("id").type == pa.int64()
+    assert table.schema.field("ejected").type == pa.int64()
+    assert pa.types.is_dictionary(table.schema.field("status").type)
+    # In memory (no out=): the same table, nothing left behind.
+    assert hc.sweep(str(MASS_GAP), backend="cpu", progress=False, threads=1).equals(want)
+
+
+def test_a_dict_a_toml_string_and_a_file_are_the_same_sweep(tmp_path):
+    f = tmp_path / "small.toml"
+    f.write_text(SMALL_TOML)
+    a = hc.sweep(f, backend="cpu", progress=False)
+    b = hc.sweep(SMALL_TOML, backend="cpu", progress=False)
+    c = hc.sweep(SMALL, backend="cpu", progress=False)
+    assert a.num_rows == 12 and a.equals(b) and a.equals(c)
+    assert a.column("gap").to_pylist()[:4] == [0.0, 2e-5 / 3, 2 * 2e-5 / 3, 2e-5]
+
+
+def test_bad_input_raises_value_error_with_the_clis_message(tmp_path):
+    bad = dict(SMALL, axis=[{"param": "gap", "linspace": [0.0, 2e-5, 0]}])
+    with pytest.raises(ValueError, match="at least 1 point"):
+        hc.sweep(bad, progress=False)
+    f = tmp_path / "bad.toml"
+    f.write_text(SMALL_TOML.replace('"gap"', '"gapp"'))
+    r = cli("sweep", f, "--out", tmp_path / "x.csv")
+    assert r.returncode == 2
+    with pytest.raises(ValueError) as e:
+        hc.sweep(f, out=tmp_path / "y.csv", progress=False)
+    assert str(e.value) == r.stderr.strip().removeprefix("error: ")
+    assert "gapp" in str(e.value) and "bad.toml" in str(e.value)
+    with pytest.raises(ValueError, match="--tolerance"):
+        hc.sweep(SMALL, tolerance=-1, progress=False)
+    with pytest.raises(ValueError, match="possible values"):
+        hc.sweep(SMALL, backend="quantum", progress=False)
+    with pytest.raises(ValueError, match="no such file, nor a built-in scene"):
+        hc.run("no-such-scene")
+    with pytest.raises(TypeError):
+        hc.sweep(42)
+    assert not (tmp_path / "y.csv").exists()
+
+
+def test_run_equals_cradle_run(tmp_path):
+    r = cli("run", "cradle-2", "--format", "csv")
+    header, row = r.stdout.splitlines()
+    want = dict(zip(header.split(","), row.split(",")))
+    got = hc.run("cradle-2")
+    assert got["status"] == want["status"] == "ok"
+    for k, v in want.items():
+        if k in ("id",):
+            continue
+        if v == "":
+            assert got[k] is None, k
+        elif k in ("ejected", "steps", "contacts"):
+            assert got[k] == int(v), k
+        elif k != "status":
+            assert got[k] == float(v), k  # the CLI's text is the shortest round trip
+    assert set(hc.scenes()) >= {"cradle-1", "cradle-2", "seed-glued-pair-into-one"}
+    # A scene as a dict, with a trace.
+    scene = {"balls": 2, "velocity": [1.0, 0.0]}
+    out, trace = hc.run(scene, trace_dt=2e-6)
+    assert out["status"] == "ok" and trace.column_names == ["t", "x_0", "x_1", "v_0", "v_1"]
+    assert abs(out["v_1"] - 1.0) < 1e-9 and abs(out["v_0"]) < 1e-9
+    assert trace.num_rows > 10
+    assert hc.run(scene, model="hard-sphere")["v_1"] == 1.0
+
+
+def test_ctrl_c_stops_a_sweep_and_resume_finishes_it(tmp_path):
+    spec = tmp_path / "big.toml"
+    spec.write_text(SMALL_TOML.replace("3]", "300]").replace("4]", "1000]"))  # 300,000 scenes
+    out = tmp_path / "big.csv"
+    script = textwrap.dedent(
+        f"""\
+        import sys, time, hertz_cradle as hc
+        t = time.time()
+        try:
+            hc.sweep({str(spec)!r}, backend="cpu", out={str(out)!r}, progress=False)
+        except KeyboardInterrupt:
+            print("interrupted", time.time(), flush=True)
+            sys.exit(3)
+        print("finished", flush=True)
+        """
+    )
+    p = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE, text=True)
+    partial = tmp_path / "big.csv.partial"
+    t0 = time.time()
+    while (not partial.exists() or partial.stat().st_size < 200_000) and time.time() - t0 < 60:
+        time.sleep(0.01)
+    sent = time.time()
+    p.send_signal(signal.SIGINT)
+    stdout, _ = p.communicate(timeout=30)
+    assert p.returncode == 3, stdout
+    stopped = float(stdout.split()[1])
+    assert stopped - sent < 1.0, f"took {stopped - sent:.2f} s to stop"
+    assert not out.exists() and partial.exists()
+    # What was written is a prefix of the right answer; resume completes it.
+    ref = tmp_path / "ref.csv"
+    assert cli("sweep", spec, "--out", ref, "--backend", "cpu").returncode == 0
+    assert ref.read_bytes().startswith(partial.read_bytes())
+    hc.sweep(spec, backend="cpu", out=out, resume=True, progress=False)
+    assert out.read_bytes() == ref.read_bytes()
+
+
+def test_parquet_reads_back_the_csv_values_in_pandas_and_polars(tmp_path):
+    pd = pytest.importorskip("pandas")
+    pl = pytest.importorskip("polars")
+    csv_path, pq_path = tmp_path / "t.csv", tmp_path / "t.parquet"
+    assert cli("sweep", MASS_GAP, "--out", csv_path, "--backend", "cpu").returncode == 0
+    assert cli("sweep", MASS_GAP, "--out", pq_path, "--backend", "cpu").returncode == 0
+    a = pd.read_csv(csv_path)
+    b = pd.read_parquet(pq_path)
+    assert list(a.columns) == list(b.columns)
+    for c in a.columns:
+        x, y = a[c], b[c]
+        if c == "status":
+            assert (x == y.astype(str)).all()
+        else:
+            assert x.astype("float64").equals(y.astype("float64")), c
+    p = pl.read_parquet(pq_path)
+    assert p.shape == a.shape and p["ejected"].to_list() == a["ejected"].to_list()
+    # Shards: read together as one dataset.
+    for k in (1, 2):
+        r = cli("sweep", MASS_GAP, "--out", tmp_path / f"s{k}.parquet", "--shard", f"{k}/2", "--backend", "cpu")
+        assert r.returncode == 0, r.stderr
+    both = pl.read_parquet([tmp_path / "s1.parquet", tmp_path / "s2.parquet"])
+    assert both.equals(p)
