@@ -679,6 +679,28 @@ fn parquet_output_survives_disk_full_and_kills_and_holds_the_csv_values() {
         n += 1;
     }
     assert_eq!((n, rows.len()), (140_000, 140_000));
+    // `cradle plot` draws the same picture from either file.
+    let pngs: Vec<PathBuf> = ["csv", "parquet"]
+        .iter()
+        .map(|e| {
+            let png = d.join(format!("map_{e}.png"));
+            let table = if *e == "csv" { &csv } else { &reference };
+            ok(&[
+                "plot",
+                s(table),
+                "--x",
+                "gap",
+                "--y",
+                "mass[2]",
+                "--z",
+                "ejected",
+                "--out",
+                s(&png),
+            ]);
+            png
+        })
+        .collect();
+    assert_eq!(fs::read(&pngs[0]).unwrap(), fs::read(&pngs[1]).unwrap());
 
     // Disk full while appending the second segment.
     let out = d.join("full.parquet");
