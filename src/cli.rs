@@ -60,6 +60,14 @@ pub enum Command {
         #[arg(long, value_name = "FILE")]
         out: PathBuf,
     },
+    /// Write a refined sweep's table (`[refine]`) as the full grid: every scene
+    /// not computed takes the row of its nearest computed one.
+    Fill {
+        /// A refined sweep's CSV (its sidecar FILE.json beside it).
+        table: PathBuf,
+        #[arg(long, value_name = "FILE")]
+        out: PathBuf,
+    },
     /// Plot a phase diagram of an outcome table, or a trace's space-time diagram.
     #[command(
         after_help = "Examples:\n  cradle plot results/mass_gap.csv --x gap --y 'mass[2]' --z ejected --out ejected.png\n  cradle plot big.csv --x gap --y velocity[0] --z v_4 --where balls=5 --out v4.svg\n  cradle plot --trace trace.csv --out trace.png"

@@ -82,6 +82,30 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             );
             Ok(())
         }
+        Command::Fill { table, out } => {
+            let target = guard::output("--out", &out, std::slice::from_ref(&table), &[".tmp"])?;
+            let Some(g) = hertz_cradle::output::fill::grid(&table)? else {
+                return Err(hertz_cradle::InputError::Data {
+                    path: table,
+                    what: "not a refined sweep's table (its sidecar has no `refine`)".into(),
+                }
+                .into());
+            };
+            let tmp = guard::with_suffix(&target, ".tmp");
+            let mut w = std::io::BufWriter::new(
+                std::fs::File::create(&tmp)
+                    .map_err(|e| anyhow::anyhow!("cannot create {}: {e}", tmp.display()))?,
+            );
+            let n = hertz_cradle::output::fill::fill(&table, &g, &mut |row| {
+                w.write_all(row)
+                    .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", tmp.display()))
+            })?;
+            w.flush()?;
+            drop(w);
+            std::fs::rename(&tmp, &target)?;
+            eprintln!("cradle: {n} rows -> {}", target.display());
+            Ok(())
+        }
         Command::Plot {
             table,
             trace,

@@ -547,3 +547,228 @@ fn slurm_job_array_merges_to_the_unsharded_run() {
         fs::read(p("merged.csv")).unwrap()
     );
 }
+
+fn ok(args: &[&str]) {
+    cradle().args(args).assert().success();
+}
+
+/// A 5-ball mass × gap map, optionally with a third axis and a `[refine]`.
+fn refine_sweep(dir: &Path, name: &str, axes: &str, refine: &str) -> PathBuf {
+    let p = dir.join(name);
+    fs::write(
+        &p,
+        format!("[scene]\nballs = 5\nvelocity = [1.0, 0, 0, 0, 0]\n{axes}\n{refine}\n"),
+    )
+    .unwrap();
+    p
+}
+
+const MAP_AXES: &str = "[[axis]]\nparam = \"mass[2]\"\nlogspace = [0.0064, 0.64, 97]\n[[axis]]\nparam = \"gap\"\nlinspace = [0.0, 2e-5, 80]\n";
+
+/// The rows of a CSV after its header, keyed by id.
+fn rows_by_id(p: &Path) -> Vec<(u64, String)> {
+    fs::read_to_string(p)
+        .unwrap()
+        .lines()
+        .skip(1)
+        .map(|l| {
+            (
+                l.split(',').next().unwrap().parse().unwrap(),
+                format!("{l}\n"),
+            )
+        })
+        .collect()
+}
+
+#[test]
+fn refinement_computes_few_scenes_with_the_full_grids_bytes_and_fills_the_map() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let full = refine_sweep(d, "full.toml", MAP_AXES, "");
+    let refined = refine_sweep(
+        d,
+        "ref.toml",
+        MAP_AXES,
+        "[refine]\ncolumn = \"ejected\"\nstride = 4\n",
+    );
+    let (full_csv, ref_csv, filled) = (d.join("full.csv"), d.join("ref.csv"), d.join("filled.csv"));
+    sweep(&[
+        full.to_str().unwrap(),
+        "--out",
+        full_csv.to_str().unwrap(),
+        "--backend",
+        "cpu",
+    ]);
+    sweep(&[
+        refined.to_str().unwrap(),
+        "--out",
+        ref_csv.to_str().unwrap(),
+        "--backend",
+        "cpu",
+    ]);
+    let all = rows_by_id(&full_csv);
+    let part = rows_by_id(&ref_csv);
+    // Exactly the computed scenes, once each, in id order, with the full grid's bytes.
+    assert!(part.windows(2).all(|w| w[0].0 < w[1].0));
+    for (id, row) in &part {
+        assert_eq!(&all[*id as usize].1, row, "id {id}");
+    }
+    let head = |p: &Path| {
+        fs::read_to_string(p)
+            .unwrap()
+            .lines()
+            .next()
+            .unwrap()
+            .to_string()
+    };
+    assert_eq!(head(&ref_csv), head(&full_csv));
+    assert!(
+        part.len() < all.len() / 3,
+        "{} of {}",
+        part.len(),
+        all.len()
+    );
+    // The sidecar counts each level; the levels add up to the rows.
+    let sc: serde_json::Value =
+        serde_json::from_slice(&fs::read(d.join("ref.csv.json")).unwrap()).unwrap();
+    let levels = sc["refine"]["levels"].as_array().unwrap();
+    assert_eq!(levels[0]["stride"], 4);
+    assert_eq!(levels.last().unwrap()["stride"], 1);
+    let sum: u64 = levels.iter().map(|l| l["scenes"].as_u64().unwrap()).sum();
+    assert_eq!(sum as usize, part.len());
+    assert_eq!(
+        sc["scenes_ok"].as_u64().unwrap() + sc["scenes_not_ok"].as_u64().unwrap(),
+        sum
+    );
+    // Filled, the map matches the full grid's `ejected` almost everywhere.
+    ok(&[
+        "fill",
+        ref_csv.to_str().unwrap(),
+        "--out",
+        filled.to_str().unwrap(),
+    ]);
+    let f = rows_by_id(&filled);
+    assert_eq!(f.len(), all.len());
+    let col = head(&full_csv)
+        .split(',')
+        .position(|c| c == "ejected")
+        .unwrap();
+    let field = |r: &str| r.trim_end().split(',').nth(col).unwrap().to_string();
+    let wrong = f
+        .iter()
+        .zip(&all)
+        .filter(|(a, b)| field(&a.1) != field(&b.1))
+        .count();
+    assert!(
+        wrong * 1000 <= all.len(),
+        "{wrong} of {} cells wrong",
+        all.len()
+    );
+    for ((ia, a), (ib, b)) in f.iter().zip(&all) {
+        assert_eq!(ia, ib);
+        // Axis values are each cell's own.
+        assert_eq!(
+            a.split(',').take(3).collect::<Vec<_>>(),
+            b.split(',').take(3).collect::<Vec<_>>()
+        );
+    }
+    // A disk that fills at the write of any level (one batch each here):
+    // --resume finishes the same bytes.
+    let want = fs::read(&ref_csv).unwrap();
+    for k in [1, 2, 3] {
+        let out = d.join(format!("ref{k}.csv"));
+        let o = cradle()
+            .args([
+                "sweep",
+                refined.to_str().unwrap(),
+                "--out",
+                out.to_str().unwrap(),
+                "--backend",
+                "cpu",
+            ])
+            .env("CRADLE_FAILPOINT", format!("append:{k}"))
+            .output()
+            .unwrap();
+        assert_eq!(
+            o.status.code(),
+            Some(1),
+            "{}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        assert!(!out.exists());
+        sweep(&[
+            refined.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--backend",
+            "cpu",
+            "--resume",
+        ]);
+        assert_eq!(fs::read(&out).unwrap(), want, "failpoint append:{k}");
+    }
+}
+
+#[test]
+fn refinement_in_three_axes_with_a_threshold_and_its_refusals() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let axes = "[[axis]]\nparam = \"mass[2]\"\nlogspace = [0.0064, 0.64, 33]\n[[axis]]\nparam = \"gap\"\nlinspace = [0.0, 2e-5, 17]\n[[axis]]\nparam = \"velocity[0]\"\nvalues = [0.5, 1.0, 2.0]\n";
+    let full = refine_sweep(d, "full.toml", axes, "");
+    let refined = refine_sweep(
+        d,
+        "ref.toml",
+        axes,
+        "[refine]\ncolumn = \"energy_last\"\nthreshold = 0.05\nstride = 8\n",
+    );
+    let (full_csv, ref_csv) = (d.join("full.csv"), d.join("ref.csv"));
+    sweep(&[
+        full.to_str().unwrap(),
+        "--out",
+        full_csv.to_str().unwrap(),
+        "--backend",
+        "cpu",
+    ]);
+    sweep(&[
+        refined.to_str().unwrap(),
+        "--out",
+        ref_csv.to_str().unwrap(),
+        "--backend",
+        "cpu",
+    ]);
+    let all = rows_by_id(&full_csv);
+    let part = rows_by_id(&ref_csv);
+    assert!(part.windows(2).all(|w| w[0].0 < w[1].0) && part.len() < all.len());
+    for (id, row) in &part {
+        assert_eq!(&all[*id as usize].1, row);
+    }
+    let refused = |args: &[&str], needle: &str| {
+        let o = cradle().args(args).output().unwrap();
+        let e = String::from_utf8_lossy(&o.stderr).to_string();
+        assert_eq!(o.status.code(), Some(2), "{e}");
+        assert!(e.contains(needle), "{e:?} lacks {needle:?}");
+    };
+    let r = refined.to_str().unwrap();
+    let x = d.join("x.csv");
+    let x = x.to_str().unwrap();
+    refused(&["sweep", r, "--out", x, "--shard", "1/2"], "--shard");
+    refused(
+        &["sweep", r, "--out", d.join("x.parquet").to_str().unwrap()],
+        "parquet",
+    );
+    for (refine, needle) in [
+        ("[refine]\ncolumn = \"v_4\"\n", "needs `threshold`"),
+        (
+            "[refine]\ncolumn = \"ejectd\"\n",
+            "a column of this sweep's table",
+        ),
+        ("[refine]\ncolumn = \"gap\"\n", "an outcome column"),
+        (
+            "[refine]\ncolumn = \"ejected\"\nstride = 3\n",
+            "a power of two",
+        ),
+        ("[refine]\ncolum = \"ejected\"\n", "colum"),
+    ] {
+        let p = refine_sweep(d, "bad.toml", axes, refine);
+        refused(&["sweep", p.to_str().unwrap(), "--out", x], needle);
+    }
+}

@@ -1,6 +1,7 @@
 //! Writers: outcome rows (CSV, Parquet and tables) and trajectories.
 
 pub mod failpoint;
+pub mod fill;
 pub mod guard;
 pub mod lock;
 pub mod merge;

@@ -54,6 +54,9 @@ pub struct Partial {
     pub ok_done: u64,
     /// Wall time of earlier runs (s), up to their last saved progress.
     pub wall_before: f64,
+    /// Rows of each section (a refinement level), each in id order; the
+    /// finished file interleaves them in id order. Empty: one section.
+    pub sections: Vec<u64>,
 }
 
 /// Every file written beside an output `FILE` (by a sweep or a merge): the
@@ -170,6 +173,7 @@ impl Partial {
                 rows_done: rows,
                 ok_done: ok,
                 wall_before,
+                sections: vec![],
             }));
         }
         if resume && out.exists() {
@@ -206,6 +210,7 @@ impl Partial {
             rows_done: 0,
             ok_done: 0,
             wall_before: 0.0,
+            sections: vec![],
         }))
     }
 
@@ -237,6 +242,15 @@ impl Partial {
             .with_context(|| format!("cannot write {}", self.partial.display()))?;
         drop(self.file);
         let done = match &self.format {
+            TableFormat::Csv if self.sections.len() > 1 => {
+                let tmp = with_suffix(&self.path, TMP);
+                let r = interleave(&self.partial, self.head_len, &self.sections, &tmp);
+                if r.is_err() {
+                    let _ = fs::remove_file(&tmp);
+                }
+                r?;
+                tmp
+            }
             TableFormat::Csv => self.partial.clone(),
             TableFormat::Parquet(schema) => {
                 let tmp = with_suffix(&self.path, TMP);
@@ -323,4 +337,65 @@ fn complete_frames(partial: &Path, head: &[u8]) -> Result<(u64, u64, u64)> {
         frames.iter().map(|fr| fr.rows).sum(),
         frames.iter().map(|fr| fr.ok).sum(),
     ))
+}
+
+/// Write `partial`'s header and its `sections` (consecutive runs of rows,
+/// each in id order) to `out`, the rows of all sections in id order.
+fn interleave(partial: &Path, head_len: u64, sections: &[u64], out: &Path) -> Result<()> {
+    let ctx = || format!("cannot write {}", out.display());
+    let open = || File::open(partial).with_context(|| format!("cannot read {}", partial.display()));
+    let mut w = std::io::BufWriter::new(File::create(out).with_context(ctx)?);
+    let mut head = vec![0u8; head_len as usize];
+    std::io::Read::read_exact(&mut open()?, &mut head)?;
+    w.write_all(&head).with_context(ctx)?;
+    // One reader per section, at its first row.
+    let mut readers = vec![];
+    let mut r = BufReader::new(open()?);
+    r.seek(SeekFrom::Start(head_len))?;
+    let mut line = Vec::new();
+    for &n in sections {
+        let at = r.stream_position()?;
+        let mut section = BufReader::new(open()?);
+        section.seek(SeekFrom::Start(at))?;
+        readers.push((section, n));
+        for _ in 0..n {
+            line.clear();
+            r.read_until(b'\n', &mut line)?;
+        }
+    }
+    let id_of = |l: &[u8]| -> u64 {
+        let end = l.iter().position(|&b| b == b',').unwrap_or(l.len());
+        std::str::from_utf8(&l[..end])
+            .ok()
+            .and_then(|t| t.parse().ok())
+            .unwrap_or(u64::MAX)
+    };
+    // The next row of each section, merged by id.
+    let mut heads: Vec<Option<Vec<u8>>> = vec![None; readers.len()];
+    let mut advance = |k: usize, heads: &mut Vec<Option<Vec<u8>>>| -> Result<()> {
+        let (rd, left) = &mut readers[k];
+        heads[k] = if *left == 0 {
+            None
+        } else {
+            *left -= 1;
+            let mut l = Vec::new();
+            rd.read_until(b'\n', &mut l)?;
+            Some(l)
+        };
+        Ok(())
+    };
+    for k in 0..heads.len() {
+        advance(k, &mut heads)?;
+    }
+    while let Some(k) = (0..heads.len())
+        .filter(|&k| heads[k].is_some())
+        .min_by_key(|&k| id_of(heads[k].as_deref().unwrap_or_default()))
+    {
+        w.write_all(heads[k].as_deref().unwrap_or_default())
+            .with_context(ctx)?;
+        advance(k, &mut heads)?;
+    }
+    w.flush().with_context(ctx)?;
+    w.get_ref().sync_all().with_context(ctx)?;
+    Ok(())
 }

@@ -37,6 +37,9 @@ pub struct Sidecar<'a, S: Serialize> {
     pub wall_s_this_run: f64,
     /// Where this run's time went: thread-seconds per pipeline stage.
     pub stages_s: serde_json::Value,
+    /// An adaptive refinement: the scenes each level computed.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub refine: Option<serde_json::Value>,
     /// What a `--resume` must agree with: sweep, shard, solver flags, version.
     pub fingerprint: &'a str,
 }

@@ -32,16 +32,29 @@ impl Table {
                 rows,
             });
         }
+        // A refined sweep's table is drawn as the full grid (`output::fill`).
+        let filled = match crate::output::fill::grid(path) {
+            Ok(Some(g)) => {
+                let mut bytes = Vec::new();
+                crate::output::fill::fill(path, &g, &mut |row| {
+                    bytes.extend_from_slice(row);
+                    Ok(())
+                })
+                .map_err(|e| data_err(path, format!("cannot fill the refined table: {e:#}")))?;
+                Some(bytes)
+            }
+            _ => None,
+        };
+        let source: Box<dyn std::io::Read> = match filled {
+            Some(bytes) => Box::new(std::io::Cursor::new(bytes)),
+            None => Box::new(std::fs::File::open(path).map_err(|error| InputError::Read {
+                path: path.to_path_buf(),
+                error,
+            })?),
+        };
         let mut r = csv::ReaderBuilder::new()
             .flexible(false)
-            .from_path(path)
-            .map_err(|e| match e.into_kind() {
-                csv::ErrorKind::Io(source) => InputError::Read {
-                    path: path.to_path_buf(),
-                    error: source,
-                },
-                k => data_err(path, format!("not a CSV table: {k:?}")),
-            })?;
+            .from_reader(source);
         let header: Vec<String> = r
             .headers()
             .map_err(|e| data_err(path, format!("not a CSV table: {e}")))?

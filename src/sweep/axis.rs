@@ -165,6 +165,33 @@ pub enum Values {
 }
 
 impl Values {
+    /// The values as their `Serialize` wrote them (a sidecar's sweep).
+    pub fn from_json(j: &serde_json::Value) -> Option<Values> {
+        if let Some(list) = j.as_array() {
+            return list
+                .iter()
+                .map(|v| match v {
+                    serde_json::Value::String(s) => Some(Value::Text(s.clone())),
+                    v => v.as_f64().map(Value::Num),
+                })
+                .collect::<Option<Vec<_>>>()
+                .map(Values::List);
+        }
+        let o = j.as_object()?;
+        let (key, r) = o.iter().next()?;
+        let r = r.as_array()?;
+        let (start, stop, num) = (
+            r.first()?.as_f64()?,
+            r.get(1)?.as_f64()?,
+            r.get(2)?.as_u64()? as usize,
+        );
+        match key.as_str() {
+            "linspace" => Some(Values::Linspace { start, stop, num }),
+            "logspace" => Some(Values::Logspace { start, stop, num }),
+            _ => None,
+        }
+    }
+
     pub fn len(&self) -> usize {
         match self {
             Values::List(v) => v.len(),

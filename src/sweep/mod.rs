@@ -4,6 +4,7 @@
 
 pub mod axis;
 pub mod pipeline;
+pub mod refine;
 pub mod run;
 
 use std::path::Path;
@@ -31,6 +32,15 @@ struct RawSweep {
     description: Option<String>,
     scene: Option<Spanned<toml::Value>>,
     axis: Option<Vec<Spanned<RawAxis>>>,
+    refine: Option<Spanned<RawRefine>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawRefine {
+    column: Option<String>,
+    threshold: Option<f64>,
+    stride: Option<i64>,
 }
 
 /// Read again for an inline `[scene]`, so its spans point into the sweep file.
@@ -76,6 +86,10 @@ pub struct Sweep {
     pub total: u64,
     /// Largest chain length over the sweep: the number of `v_i` columns.
     pub width: usize,
+    /// Adaptive refinement (`[refine]`): only the scenes a phase diagram of
+    /// one column needs (`refine.rs`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub refine: Option<refine::RefineSpec>,
 }
 
 impl Sweep {
@@ -349,8 +363,8 @@ impl Sweep {
                 }
             }
         }
-        Ok(Sweep {
-            origin,
+        let mut sweep = Sweep {
+            origin: origin.clone(),
             inputs,
             description: raw.description,
             scene: scene_spec,
@@ -358,7 +372,92 @@ impl Sweep {
             axes: axes.into_iter().map(|(_, a)| a).collect(),
             total,
             width,
+            refine: None,
+        };
+        if let Some(r) = raw.refine {
+            let line = Some(src.line(r.span().start));
+            sweep.refine = Some(sweep.refine_spec(r.into_inner(), &|key, value, allowed| {
+                invalid(line, key, value, allowed)
+            })?);
+        }
+        Ok(sweep)
+    }
+
+    /// Check a `[refine]` table against this sweep's columns.
+    fn refine_spec(
+        &self,
+        r: RawRefine,
+        invalid: &dyn Fn(&str, String, String) -> InputError,
+    ) -> Result<refine::RefineSpec, InputError> {
+        let header = crate::output::row::header(&self.axis_names(), self.shape());
+        let types = self.column_types();
+        let Some(column) = r.column else {
+            return Err(invalid(
+                "refine.column",
+                "(missing)".into(),
+                "the column the diagram is about, e.g. \"ejected\" or \"status\"".into(),
+            ));
+        };
+        let Some(k) = header.iter().position(|h| *h == column) else {
+            return Err(invalid(
+                "refine.column",
+                format!("{column:?}"),
+                format!("a column of this sweep's table: {}", header.join(", ")),
+            ));
+        };
+        if k == 0 || k <= self.axes.len() {
+            return Err(invalid(
+                "refine.column",
+                format!("{column:?}"),
+                "an outcome column (not `id` or an axis)".into(),
+            ));
+        }
+        match r.threshold {
+            Some(t) if !(t.is_finite() && t >= 0.0) => {
+                return Err(invalid(
+                    "refine.threshold",
+                    t.to_string(),
+                    "a number ≥ 0: corners differing by more than it are refined".into(),
+                ))
+            }
+            None if types[k] == crate::output::row::ColType::Num => {
+                return Err(invalid(
+                    "refine.column",
+                    format!("{column:?}"),
+                    "a continuous column needs `threshold` (corners differing by more than it are refined); without one, a categorical column: ejected, status, steps, contacts".into(),
+                ))
+            }
+            _ => {}
+        }
+        if self.axes.iter().all(|a| a.values.len() < 2) {
+            return Err(invalid(
+                "refine",
+                "(no axis with 2 or more values)".into(),
+                "a grid to refine: at least one `[[axis]]` with 2 or more values".into(),
+            ));
+        }
+        let dims = self.dims();
+        let stride = match r.stride {
+            None => refine::default_stride(&dims),
+            Some(s) if s >= 1 && (s as u64).is_power_of_two() => s as u64,
+            Some(s) => {
+                return Err(invalid(
+                    "refine.stride",
+                    s.to_string(),
+                    "a power of two ≥ 1: the coarse level's spacing in grid steps".into(),
+                ))
+            }
+        };
+        Ok(refine::RefineSpec {
+            column,
+            threshold: r.threshold,
+            stride,
         })
+    }
+
+    /// Number of values of each axis (the grid's shape).
+    pub fn dims(&self) -> Vec<u64> {
+        self.axes.iter().map(|a| a.values.len() as u64).collect()
     }
 
     /// Flags against this sweep's file: an axis that varies what a flag sets

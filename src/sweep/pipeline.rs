@@ -113,19 +113,38 @@ impl Gate {
     }
 }
 
-/// Jobs, outcomes and rows of the scenes `first .. end`.
+/// Which scenes a stream runs: position p of the stream is scene `p`
+/// (`All`) or scene `ids[p]` (`List`, ascending: a refinement level).
+#[derive(Clone, Copy)]
+pub enum Ids<'a> {
+    All,
+    List(&'a [u64]),
+}
+
+impl Ids<'_> {
+    fn at(&self, p: u64) -> u64 {
+        match self {
+            Ids::All => p,
+            Ids::List(v) => v[p as usize],
+        }
+    }
+}
+
+/// Jobs, outcomes and rows of the scenes at positions `first .. end`.
+#[allow(clippy::too_many_arguments)]
 fn batch(
     sweep: &Sweep,
     opts: &Options,
     backend: &dyn Backend,
     gate: &Gate,
     format: &TableFormat,
+    ids: Ids,
     (first, end): (u64, u64),
     st: &mut Stages,
 ) -> Result<Done> {
     let t = Instant::now();
     let jobs = (first..end)
-        .map(|i| sweep.job(i, &opts.overrides))
+        .map(|p| sweep.job(ids.at(p), &opts.overrides))
         .collect::<Result<Vec<Job>, _>>()?;
     let t1 = Instant::now();
     let outcomes = gate.with(|| run_with_estimate(backend, &jobs, opts.error_estimate))?;
@@ -137,7 +156,8 @@ fn batch(
         TableFormat::Csv => {
             let mut bytes = Vec::with_capacity(256 * outcomes.len());
             let mut scratch = String::with_capacity(32);
-            for (i, o) in (first..).zip(&outcomes) {
+            for (p, o) in (first..).zip(&outcomes) {
+                let i = ids.at(p);
                 let axes = |f: &mut dyn FnMut(row::Field)| sweep.emit_axis_values(i, f);
                 let mut sep = false;
                 row::emit(i, axes, o, shape, &mut scratch, &mut |field| {
@@ -153,7 +173,8 @@ fn batch(
         }
         TableFormat::Parquet(schema) => {
             let mut cols = Columns::new(schema, &sweep.column_types(), outcomes.len());
-            for (i, o) in (first..).zip(&outcomes) {
+            for (p, o) in (first..).zip(&outcomes) {
+                let i = ids.at(p);
                 let axes = |f: &mut dyn FnMut(row::Field)| sweep.emit_axis_values(i, f);
                 row::emit_fields(i, axes, o, shape, &mut |field| cols.push(field));
             }
@@ -172,18 +193,31 @@ fn batch(
     })
 }
 
-/// Run scenes `lo .. hi` and append their rows to `out` in id order. Returns
-/// (ok rows, rows, the output, stage times). `progress` gets the end id of
-/// the rows written so far; `save` is called every few seconds.
+/// Sees every CSV chunk a stream appends.
+pub type RowsHook<'a> = &'a (dyn Fn(&[u8]) + Sync);
+
+/// What a stream does besides appending rows: `progress` gets the end
+/// position of the rows written so far; `save` is called every few seconds;
+/// `rows` (if any) sees every CSV chunk appended.
+pub struct Hooks<'a> {
+    pub progress: &'a (dyn Fn(u64) + Sync),
+    pub save: &'a (dyn Fn(&Partial) -> Result<()> + Sync),
+    pub rows: Option<RowsHook<'a>>,
+}
+
+/// Run the scenes at positions `lo .. hi` of `ids` and append their rows to
+/// `out` in order. Returns (ok rows, rows, the output, stage times).
+#[allow(clippy::too_many_arguments)]
 pub fn stream(
     sweep: &Sweep,
     opts: &Options,
     backend: &dyn Backend,
+    ids: Ids,
     (lo, hi): (u64, u64),
     out: Partial,
-    progress: &(dyn Fn(u64) + Sync),
-    save: &(dyn Fn(&Partial) -> Result<()> + Sync),
+    hooks: &Hooks,
 ) -> Result<(u64, u64, Partial, Stages)> {
+    let (progress, save) = (hooks.progress, hooks.save);
     let mut batch_size = backend.batch_size().max(1);
     if let TableFormat::Parquet(_) = out.format {
         // A power of two ≤ a segment: no batch straddles two segments.
@@ -234,7 +268,11 @@ pub fn stream(
                 while let Some(d) = waiting.remove(&expect) {
                     let t = Instant::now();
                     let r = match (&d.rows, segment.as_mut()) {
-                        (Rows::Csv(bytes), _) => out.append(bytes),
+                        (Rows::Csv(bytes), _) => out.append(bytes).map(|_| {
+                            if let Some(f) = hooks.rows {
+                                f(bytes)
+                            }
+                        }),
                         (Rows::Arrow(b), Some(seg)) => seg.write(b, d.ok).and_then(|_| {
                             // Segments end at fixed ids: lo + k·SEGMENT_ROWS, and at hi.
                             let end = d.first + d.n;
@@ -308,6 +346,7 @@ pub fn stream(
                         backend,
                         &gate,
                         &format,
+                        ids,
                         (first, (first + batch_size).min(hi)),
                         &mut st,
                     );

@@ -158,10 +158,18 @@ impl Sweep {
     }
 }
 
-pub fn run(sweep: &Sweep, opts: &Options, backend: &dyn Backend) -> Result<Summary> {
+/// What every run shares before its rows: the output locked and opened
+/// (or found complete), the fingerprint, the progress bar.
+pub(super) struct Opening {
+    pub _lock: OutputLock,
+    pub fingerprint: String,
+    pub out: Option<Partial>,
+    pub bar: indicatif::ProgressBar,
+}
+
+pub(super) fn open(sweep: &Sweep, opts: &Options, lo: u64, len: u64) -> Result<Opening> {
     // One writer per output, for the whole run, before anything is touched.
-    let _lock = OutputLock::acquire(&opts.out)?;
-    let (lo, hi) = sweep.shard_range(opts.shard, &opts.overrides);
+    let lock = OutputLock::acquire(&opts.out)?;
     // Everything a resumed run must share with the first, in one string.
     let fingerprint = serde_json::to_string(&serde_json::json!({
         "sweep": sweep, "shard": opts.shard, "overrides": format!("{:?}", opts.overrides),
@@ -182,42 +190,51 @@ pub fn run(sweep: &Sweep, opts: &Options, backend: &dyn Backend) -> Result<Summa
         TableFormat::Csv
     };
     let out = match Partial::open(&opts.out, format, &header, &fingerprint, opts.resume)? {
-        Opened::AlreadyComplete => {
-            return Ok(Summary {
-                already_complete: true,
-                ..Default::default()
-            })
-        }
-        Opened::Writing(w) => w,
+        Opened::AlreadyComplete => None,
+        Opened::Writing(w) => Some(w),
     };
-    let start_id = lo + out.rows_done;
-    let (ok_before, wall_before) = (out.ok_done, out.wall_before);
-    let bar = if opts.progress && std::io::stderr().is_terminal() {
-        let b = indicatif::ProgressBar::new(hi - lo);
+    let bar = if opts.progress && std::io::stderr().is_terminal() && out.is_some() {
+        let b = indicatif::ProgressBar::new(len);
         b.set_style(
             indicatif::ProgressStyle::with_template(
                 "{bar:40} {pos}/{len} scenes  {per_sec}  ETA {eta}",
             )
             .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
         );
-        b.set_position(out.rows_done);
         b
     } else {
         indicatif::ProgressBar::hidden()
     };
-    let t0 = Instant::now();
-    let (ok, done, out, stages) = pipeline::stream(
-        sweep,
-        opts,
-        backend,
-        (start_id, hi),
+    Ok(Opening {
+        _lock: lock,
+        fingerprint,
         out,
-        &|rows_end| bar.set_position(rows_end - lo),
-        &|out| out.save_wall(wall_before + t0.elapsed().as_secs_f64()),
-    )?;
-    bar.finish_and_clear();
-    let wall_s = t0.elapsed().as_secs_f64();
-    let (all_ok, all_done, all_wall) = (ok_before + ok, start_id - lo + done, wall_before + wall_s);
+        bar,
+    })
+}
+
+/// The counts a sidecar records.
+pub(super) struct Counts {
+    pub ids: (u64, u64),
+    pub ok: u64,
+    pub done: u64,
+    pub wall_s: f64,
+    pub resumed_from_row: u64,
+    pub wall_s_this_run: f64,
+    pub stages: serde_json::Value,
+    pub refine: Option<serde_json::Value>,
+}
+
+/// Write the sidecar and publish the output.
+pub(super) fn finish(
+    sweep: &Sweep,
+    opts: &Options,
+    backend: &dyn Backend,
+    fingerprint: &str,
+    out: Partial,
+    c: Counts,
+) -> Result<()> {
+    let (lo, hi) = c.ids;
     let text = sidecar::text(&sidecar::Sidecar {
         tool: "cradle",
         version: env!("CARGO_PKG_VERSION"),
@@ -241,16 +258,62 @@ pub fn run(sweep: &Sweep, opts: &Options, backend: &dyn Backend) -> Result<Summa
         ids: [lo, hi],
         total_scenes: sweep.total,
         shard: opts.shard.map(|(k, n)| [k, n]),
-        scenes_ok: all_ok,
-        scenes_not_ok: all_done - all_ok,
-        wall_s: all_wall,
-        scenes_per_s: all_done as f64 / all_wall.max(1e-9),
+        scenes_ok: c.ok,
+        scenes_not_ok: c.done - c.ok,
+        wall_s: c.wall_s,
+        scenes_per_s: c.done as f64 / c.wall_s.max(1e-9),
+        resumed_from_row: c.resumed_from_row,
+        wall_s_this_run: c.wall_s_this_run,
+        stages_s: c.stages,
+        refine: c.refine,
+        fingerprint,
+    })?;
+    out.finish((&sidecar::path(&opts.out), text.as_bytes()))
+}
+
+pub fn run(sweep: &Sweep, opts: &Options, backend: &dyn Backend) -> Result<Summary> {
+    if let Some(spec) = &sweep.refine {
+        return super::refine::run(sweep, spec, opts, backend);
+    }
+    let (lo, hi) = sweep.shard_range(opts.shard, &opts.overrides);
+    let o = open(sweep, opts, lo, hi - lo)?;
+    let Some(out) = o.out else {
+        return Ok(Summary {
+            already_complete: true,
+            ..Default::default()
+        });
+    };
+    let bar = o.bar;
+    let start_id = lo + out.rows_done;
+    let (ok_before, wall_before) = (out.ok_done, out.wall_before);
+    bar.set_position(out.rows_done);
+    let t0 = Instant::now();
+    let (ok, done, out, stages) = pipeline::stream(
+        sweep,
+        opts,
+        backend,
+        pipeline::Ids::All,
+        (start_id, hi),
+        out,
+        &pipeline::Hooks {
+            progress: &|rows_end| bar.set_position(rows_end - lo),
+            save: &|out| out.save_wall(wall_before + t0.elapsed().as_secs_f64()),
+            rows: None,
+        },
+    )?;
+    bar.finish_and_clear();
+    let wall_s = t0.elapsed().as_secs_f64();
+    let counts = Counts {
+        ids: (lo, hi),
+        ok: ok_before + ok,
+        done: start_id - lo + done,
+        wall_s: wall_before + wall_s,
         resumed_from_row: start_id - lo,
         wall_s_this_run: wall_s,
-        stages_s: stages.json(wall_s),
-        fingerprint: &fingerprint,
-    })?;
-    out.finish((&sidecar::path(&opts.out), text.as_bytes()))?;
+        stages: stages.json(wall_s),
+        refine: None,
+    };
+    finish(sweep, opts, backend, &o.fingerprint, out, counts)?;
     Ok(Summary {
         scenes: done,
         ok,

@@ -1,0 +1,136 @@
+//! A refined table (`[refine]`) as the full grid: every scene that was not
+//! computed takes the row of its nearest computed scene (Euclidean distance
+//! in grid steps, `sweep::refine::nearest`), with its own id and axis
+//! values. `cradle fill` writes it; `cradle plot` draws it. Computed rows
+//! are copied byte for byte, so they equal a full sweep's.
+
+use std::collections::HashMap;
+use std::io::{BufRead, BufReader, Write};
+use std::path::Path;
+
+use anyhow::{Context, Result};
+use serde_json::Value as Json;
+
+use crate::error::InputError;
+use crate::sweep::axis::{Value, Values};
+
+/// What a refined table's sidecar says of its grid.
+pub struct Grid {
+    pub dims: Vec<u64>,
+    pub axes: Vec<Values>,
+}
+
+fn bad(path: &Path, what: impl Into<String>) -> anyhow::Error {
+    InputError::Data {
+        path: path.to_path_buf(),
+        what: what.into(),
+    }
+    .into()
+}
+
+/// The grid of a refined table (from its sidecar), or `None` when the table
+/// is not refined.
+pub fn grid(table: &Path) -> Result<Option<Grid>> {
+    let sc = super::sidecar::path(table);
+    let Ok(text) = std::fs::read_to_string(&sc) else {
+        return Ok(None);
+    };
+    let Ok(j) = serde_json::from_str::<Json>(&text) else {
+        return Ok(None);
+    };
+    if j.get("refine").is_none() {
+        return Ok(None);
+    }
+    let axes = j["sweep"]["axes"]
+        .as_array()
+        .ok_or_else(|| bad(&sc, "a refined table's sidecar without the sweep's axes"))?
+        .iter()
+        .map(|a| Values::from_json(&a["values"]))
+        .collect::<Option<Vec<_>>>()
+        .ok_or_else(|| bad(&sc, "unreadable axis values in the sidecar"))?;
+    let dims = axes.iter().map(|v| v.len() as u64).collect();
+    Ok(Some(Grid { dims, axes }))
+}
+
+/// Every row of the full grid, in id order, to `out` (header first):
+/// computed rows as they are, the others filled from their nearest.
+pub fn fill(table: &Path, g: &Grid, out: &mut dyn FnMut(&[u8]) -> Result<()>) -> Result<u64> {
+    let mut r = BufReader::new(
+        std::fs::File::open(table).with_context(|| format!("cannot read {}", table.display()))?,
+    );
+    let mut header = Vec::new();
+    r.read_until(b'\n', &mut header)?;
+    out(&header)?;
+    let mut rows: HashMap<u64, Vec<u8>> = HashMap::new();
+    let mut line = Vec::new();
+    let total: u64 = g.dims.iter().product();
+    loop {
+        line.clear();
+        if r.read_until(b'\n', &mut line)? == 0 {
+            break;
+        }
+        let end = line.iter().position(|&b| b == b',').unwrap_or(line.len());
+        let id: u64 = std::str::from_utf8(&line[..end])
+            .ok()
+            .and_then(|t| t.parse().ok())
+            .filter(|&id| id < total)
+            .ok_or_else(|| {
+                bad(
+                    table,
+                    format!("a row without a valid id (grid of {total} scenes)"),
+                )
+            })?;
+        rows.insert(id, line.clone());
+    }
+    if rows.is_empty() {
+        return Err(bad(table, "has no rows"));
+    }
+    let sites: Vec<u64> = rows.keys().copied().collect();
+    let near = crate::sweep::refine::nearest(&g.dims, &sites);
+    let mut steps = vec![1u64; g.dims.len()];
+    for k in (0..g.dims.len().saturating_sub(1)).rev() {
+        steps[k] = steps[k + 1] * g.dims[k + 1];
+    }
+    // The outcome fields of each computed row (after id and axes), once.
+    let mut tails: HashMap<u64, Vec<u8>> = HashMap::with_capacity(rows.len());
+    for (&id, row) in &rows {
+        let mut rd = csv::ReaderBuilder::new()
+            .has_headers(false)
+            .from_reader(&row[..]);
+        let rec = rd
+            .records()
+            .next()
+            .and_then(|r| r.ok())
+            .ok_or_else(|| bad(table, format!("row {id} cannot be read")))?;
+        let mut tail = Vec::new();
+        for f in rec.iter().skip(1 + g.axes.len()) {
+            tail.push(b',');
+            super::row::push_csv_field(&mut tail, f);
+        }
+        tail.push(b'\n');
+        tails.insert(id, tail);
+    }
+    let (mut buf, mut s) = (Vec::new(), String::new());
+    for id in 0..total {
+        if let Some(row) = rows.get(&id) {
+            out(row)?;
+            continue;
+        }
+        buf.clear();
+        let _ = write!(buf, "{id}");
+        for (k, a) in g.axes.iter().enumerate() {
+            buf.push(b',');
+            let i = ((id / steps[k]) % g.dims[k]) as usize;
+            match a.get(i) {
+                Value::Num(x) => {
+                    super::row::num_into(x, &mut s);
+                    buf.extend_from_slice(s.as_bytes());
+                }
+                Value::Text(t) => super::row::push_csv_field(&mut buf, &t),
+            }
+        }
+        buf.extend_from_slice(&tails[&near[id as usize]]);
+        out(&buf)?;
+    }
+    Ok(total)
+}
