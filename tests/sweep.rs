@@ -772,3 +772,165 @@ fn refinement_in_three_axes_with_a_threshold_and_its_refusals() {
         refused(&["sweep", p.to_str().unwrap(), "--out", x], needle);
     }
 }
+
+#[test]
+fn a_point_list_runs_one_scene_per_row_and_bad_tables_say_where() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let scene = "[scene]\nballs = 5\nvelocity = [1.0, 0, 0, 0, 0]\n";
+    fs::write(
+        d.join("params.csv"),
+        "gap,mass[2],glue\n0,0.01,----\n1e-5,0.5,-=--\n2e-5,0.064,--==\n",
+    )
+    .unwrap();
+    let sw = d.join("p.toml");
+    fs::write(&sw, format!("{scene}[points]\nfile = \"params.csv\"\n")).unwrap();
+    let out = d.join("p.csv");
+    sweep(&[
+        sw.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--backend",
+        "cpu",
+    ]);
+    let text = fs::read_to_string(&out).unwrap();
+    let lines: Vec<&str> = text.lines().collect();
+    assert!(lines[0].starts_with("id,gap,mass[2],glue,status,v_0"));
+    assert_eq!(lines.len(), 4);
+    assert!(lines[2].starts_with("1,1e-5,0.5,-=--,ok,"), "{}", lines[2]);
+    // Row 1 equals the same scene in a one-scene grid sweep (same bytes after the axes).
+    let g = d.join("g.toml");
+    fs::write(
+        &g,
+        format!("{scene}[[axis]]\nparam = \"gap\"\nvalues = [1e-5]\n[[axis]]\nparam = \"mass[2]\"\nvalues = [0.5]\n[[axis]]\nparam = \"glue\"\nvalues = [\"-=--\"]\n"),
+    )
+    .unwrap();
+    let gout = d.join("g.csv");
+    sweep(&[
+        g.to_str().unwrap(),
+        "--out",
+        gout.to_str().unwrap(),
+        "--backend",
+        "cpu",
+    ]);
+    let grow = fs::read_to_string(&gout)
+        .unwrap()
+        .lines()
+        .nth(1)
+        .unwrap()
+        .to_string();
+    assert_eq!(&lines[2][1..], &grow[1..]);
+    for (table, needle) in [
+        (
+            "gap,mass[2]\n0,abc\n",
+            "p.csv:2: `mass[2]` = \"abc\": a finite number",
+        ),
+        ("gap,mas[2]\n0,0.1\n", "did you mean `mass`"),
+        ("gap,mass[2]\n0,0.1\n0,-2\n", "p.csv:3: `mass[2]` = -2"),
+        ("gap,mass[2]\n", "at least one row"),
+        ("", "a header naming the params"),
+        ("gap,mass[2]\n0\n", "2 fields"),
+        ("gap,mass[9]\n0,0.1\n", "an index in 0 ..= 4"),
+        ("balls,gap\n2.5,0\n", "whole number"),
+        ("mass,mass[1]\n1,1\n", "one column"),
+    ] {
+        fs::write(d.join("bad.p.csv"), table).unwrap();
+        let b = d.join("b.toml");
+        fs::write(&b, format!("{scene}[points]\nfile = \"bad.p.csv\"\n")).unwrap();
+        let o = cradle()
+            .args([
+                "sweep",
+                b.to_str().unwrap(),
+                "--out",
+                d.join("x.csv").to_str().unwrap(),
+            ])
+            .output()
+            .unwrap();
+        let e = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{table:?}: {e}");
+        assert!(e.contains(needle), "{table:?}: {e:?} lacks {needle:?}");
+    }
+}
+
+#[test]
+fn sampling_designs_are_seeded_sharded_and_keep_their_properties() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let n = 500;
+    let spec = |design: &str, seed: u64| {
+        format!("[scene]\nballs = 5\n[scene.launch]\nballs = 1\nvelocity = 1.0\n[sample]\ndesign = \"{design}\"\npoints = {n}\nseed = {seed}\n[[axis]]\nparam = \"mass[2]\"\nrange = [0.0064, 0.64]\nscale = \"log\"\n[[axis]]\nparam = \"gap\"\nrange = [0.0, 2e-5]\n[[axis]]\nparam = \"launch.balls\"\nrange = [1, 3]\n")
+    };
+    let run = |name: &str, text: String, extra: &[&str]| -> String {
+        let p = d.join(format!("{name}.toml"));
+        fs::write(&p, text).unwrap();
+        let out = d.join(format!("{name}.csv"));
+        let mut a = vec![
+            p.to_str().unwrap().to_string(),
+            "--out".into(),
+            out.to_str().unwrap().into(),
+        ];
+        a.extend([
+            "--backend".into(),
+            "cpu".into(),
+            "--model".into(),
+            "hard-sphere".into(),
+        ]);
+        a.extend(extra.iter().map(|s| s.to_string()));
+        sweep(&a.iter().map(String::as_str).collect::<Vec<_>>());
+        fs::read_to_string(out).unwrap()
+    };
+    let cols = |text: &str, k: usize| -> Vec<f64> {
+        text.lines()
+            .skip(1)
+            .map(|l| l.split(',').nth(k).unwrap().parse().unwrap())
+            .collect()
+    };
+    let lhs = run("lhs", spec("lhs", 4), &[]);
+    // Every stratum of every axis once: mass (log scale), gap (linear).
+    let (lo, hi) = (0.0064f64.ln(), 0.64f64.ln());
+    for (k, to_unit) in [
+        (
+            1,
+            Box::new(move |x: f64| (x.ln() - lo) / (hi - lo)) as Box<dyn Fn(f64) -> f64>,
+        ),
+        (2, Box::new(|x: f64| x / 2e-5)),
+    ] {
+        let mut strata: Vec<usize> = cols(&lhs, k)
+            .iter()
+            .map(|&x| ((to_unit(x) * n as f64).floor() as usize).min(n - 1))
+            .collect();
+        strata.sort();
+        assert_eq!(strata, (0..n).collect::<Vec<_>>(), "axis {k}");
+    }
+    // Integer axes draw integers in their range, all of them.
+    let balls = cols(&lhs, 3);
+    assert!(balls.iter().all(|b| [1.0, 2.0, 3.0].contains(b)));
+    assert!([1.0, 2.0, 3.0].iter().all(|b| balls.contains(b)));
+    // Same seed, same bytes; another seed, other points.
+    assert_eq!(run("lhs2", spec("lhs", 4), &[]), lhs);
+    assert_ne!(run("lhs3", spec("lhs", 5), &[]), lhs);
+    // Shards draw their own slice: merged, the unsharded file.
+    let sob = run("sobol", spec("sobol", 0), &[]);
+    assert!(
+        sob.lines().nth(1).unwrap().starts_with("0,0.0064,0,1,"),
+        "point 0 is the origin"
+    );
+    for k in 1..=2 {
+        run(
+            &format!("s{k}"),
+            spec("sobol", 0),
+            &["--shard", &format!("{k}/2")],
+        );
+    }
+    let m = d.join("m.csv");
+    ok(&[
+        "merge",
+        d.join("s1.csv").to_str().unwrap(),
+        d.join("s2.csv").to_str().unwrap(),
+        "--out",
+        m.to_str().unwrap(),
+    ]);
+    assert_eq!(fs::read_to_string(m).unwrap(), sob);
+    let rnd = run("random", spec("random", 1), &[]);
+    assert_eq!(rnd.lines().count(), n + 1);
+}

@@ -199,3 +199,29 @@ def test_parquet_reads_back_the_csv_values_in_pandas_and_polars(tmp_path):
         assert r.returncode == 0, r.stderr
     both = pl.read_parquet([tmp_path / "s1.parquet", tmp_path / "s2.parquet"])
     assert both.equals(p)
+
+
+def test_sobol_points_have_lower_discrepancy_than_random_ones():
+    qmc = pytest.importorskip("scipy.stats.qmc")
+    import numpy as np
+
+    def unit_points(design):
+        spec = {
+            "scene": {"balls": 5, "velocity": [1.0, 0.0, 0.0, 0.0, 0.0]},
+            "sample": {"design": design, "points": 1024, "seed": 0 if design == "sobol" else 11},
+            "axis": [
+                {"param": "mass[2]", "range": [0.0064, 0.64], "scale": "log"},
+                {"param": "gap", "range": [0.0, 2e-5]},
+            ],
+        }
+        t = hc.sweep(spec, backend="cpu", model="hard-sphere", progress=False)
+        m = np.log(t.column("mass[2]").to_numpy() / 0.0064) / np.log(100.0)
+        g = t.column("gap").to_numpy() / 2e-5
+        return np.column_stack([m, g]).clip(0, 1)
+
+    sob, rnd, lhs = unit_points("sobol"), unit_points("random"), unit_points("lhs")
+    d_sob, d_rnd, d_lhs = (qmc.discrepancy(p) for p in (sob, rnd, lhs))
+    assert d_sob < d_lhs and d_sob < d_rnd, (d_sob, d_lhs, d_rnd)
+    # The same points as scipy's unscrambled Sobol sequence (Joe & Kuo).
+    ref = qmc.Sobol(d=2, scramble=False).random(1024)
+    assert np.allclose(sob, ref, atol=1e-9)

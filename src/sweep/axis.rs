@@ -162,6 +162,36 @@ pub enum Values {
     Linspace { start: f64, stop: f64, num: usize },
     /// `logspace = [start, stop, num]` (start, stop > 0).
     Logspace { start: f64, stop: f64, num: usize },
+    /// Coordinate `axis` of a sampling design's `num` points (`[sample]`),
+    /// in `range = [lo, hi]`, log-scaled or not, integers for an integer
+    /// param.
+    Sample(Sample),
+}
+
+/// One axis of a sampling design.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Sample {
+    pub design: super::design::Design,
+    pub axis: usize,
+    pub num: usize,
+    pub seed: u64,
+    pub lo: f64,
+    pub hi: f64,
+    pub log: bool,
+    pub integer: bool,
+}
+
+impl Sample {
+    pub fn at(&self, i: usize) -> f64 {
+        let u = super::design::unit(self.design, i as u64, self.num as u64, self.axis, self.seed);
+        if self.integer {
+            (self.lo + (u * (self.hi - self.lo + 1.0)).floor()).min(self.hi)
+        } else if self.log {
+            (self.lo * (self.hi / self.lo).powf(u)).clamp(self.lo, self.hi)
+        } else {
+            (self.lo + u * (self.hi - self.lo)).clamp(self.lo, self.hi)
+        }
+    }
 }
 
 impl Values {
@@ -196,6 +226,7 @@ impl Values {
         match self {
             Values::List(v) => v.len(),
             Values::Linspace { num, .. } | Values::Logspace { num, .. } => *num,
+            Values::Sample(d) => d.num,
         }
     }
 
@@ -213,6 +244,7 @@ impl Values {
             Values::Logspace { start, stop, num } => {
                 Value::Num(logspace_at(*start, *stop, *num, i))
             }
+            Values::Sample(d) => Value::Num(d.at(i)),
         }
     }
 
@@ -222,6 +254,12 @@ impl Values {
     /// decide; the rest is a cheap second look. Every scene is validated
     /// again when it runs (an invalid one gets status `invalid`).
     pub fn sample(&self, max: usize) -> Vec<Value> {
+        if let Values::Sample(d) = self {
+            // A design's values lie in its range: its ends, then draws.
+            let mut v = vec![Value::Num(d.lo), Value::Num(d.hi)];
+            v.extend((0..d.num.min(max.saturating_sub(2))).map(|i| Value::Num(d.at(i))));
+            return v;
+        }
         let n = self.len();
         if n <= max {
             return (0..n).map(|i| self.get(i)).collect();
@@ -237,6 +275,12 @@ impl Serialize for Values {
         use serde::ser::SerializeMap;
         match self {
             Values::List(v) => v.serialize(s),
+            Values::Sample(d) => {
+                use serde::ser::SerializeMap;
+                let mut m = s.serialize_map(Some(1))?;
+                m.serialize_entry("sample", d)?;
+                m.end()
+            }
             Values::Linspace { start, stop, num } | Values::Logspace { start, stop, num } => {
                 let key = if matches!(self, Values::Linspace { .. }) {
                     "linspace"

@@ -3,7 +3,9 @@
 //! produced one id at a time, never materialised as a whole.
 
 pub mod axis;
+pub mod design;
 pub mod pipeline;
+pub mod points;
 pub mod refine;
 pub mod run;
 
@@ -33,6 +35,44 @@ struct RawSweep {
     scene: Option<Spanned<toml::Value>>,
     axis: Option<Vec<Spanned<RawAxis>>>,
     refine: Option<Spanned<RawRefine>>,
+    points: Option<Spanned<RawPoints>>,
+    sample: Option<Spanned<RawSample>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawPoints {
+    file: Option<String>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawSample {
+    design: Option<String>,
+    points: Option<i64>,
+    seed: Option<i64>,
+}
+
+/// How scene ids map to axis values.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Layout {
+    /// The cartesian product of the axes (first axis slowest).
+    Grid,
+    /// `[points]`: scene i is row i of the file (every axis at index i).
+    Points { file: String },
+    /// `[sample]`: scene i is point i of a design (every axis at index i).
+    Sample {
+        design: design::Design,
+        points: u64,
+        seed: u64,
+    },
+}
+
+impl Layout {
+    fn is_grid(&self) -> bool {
+        *self == Layout::Grid
+    }
 }
 
 #[derive(Deserialize)]
@@ -56,6 +96,8 @@ struct RawAxis {
     values: Option<Vec<toml::Value>>,
     linspace: Option<Vec<f64>>,
     logspace: Option<Vec<f64>>,
+    range: Option<Vec<f64>>,
+    scale: Option<String>,
 }
 
 #[derive(Clone, Debug, Serialize)]
@@ -90,6 +132,9 @@ pub struct Sweep {
     /// one column needs (`refine.rs`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub refine: Option<refine::RefineSpec>,
+    /// A grid, a point list or a sampling design.
+    #[serde(skip_serializing_if = "Layout::is_grid")]
+    pub layout: Layout,
 }
 
 impl Sweep {
@@ -147,7 +192,93 @@ impl Sweep {
         };
         let base = scene_spec.validate()?;
 
+        let mut layout = Layout::Grid;
+        if let Some(sm) = &raw.sample {
+            let line = Some(src.line(sm.span().start));
+            let sm = sm.get_ref();
+            let design = sm.design.as_deref().unwrap_or("(missing)");
+            let Some(d) = design::Design::parse(design) else {
+                return Err(invalid(
+                    line,
+                    "sample.design",
+                    format!("{design:?}"),
+                    "\"sobol\", \"lhs\" or \"random\"".into(),
+                ));
+            };
+            let points = match sm.points {
+                Some(n) if n >= 1 && n as u64 <= axis::MAX_AXIS_VALUES as u64 => n as u64,
+                other => {
+                    return Err(invalid(
+                        line,
+                        "sample.points",
+                        other.map_or("(missing)".into(), |n| n.to_string()),
+                        format!(
+                            "the number of scenes to draw, 1 ..= {}",
+                            axis::MAX_AXIS_VALUES
+                        ),
+                    ))
+                }
+            };
+            let seed = match sm.seed {
+                None => 0,
+                Some(x) if x >= 0 => x as u64,
+                Some(x) => {
+                    return Err(invalid(
+                        line,
+                        "sample.seed",
+                        x.to_string(),
+                        "an integer ≥ 0".into(),
+                    ))
+                }
+            };
+            if raw.points.is_some() {
+                return Err(invalid(
+                    line,
+                    "sample",
+                    "with [points]".into(),
+                    "one of [sample] and [points]".into(),
+                ));
+            }
+            layout = Layout::Sample {
+                design: d,
+                points,
+                seed,
+            };
+        }
         let mut axes = Vec::new();
+        if let Some(pt) = &raw.points {
+            let line = Some(src.line(pt.span().start));
+            if raw.axis.is_some() {
+                return Err(invalid(
+                    line,
+                    "points",
+                    "with [[axis]]".into(),
+                    "either [points] (the params are the file's columns) or [[axis]] tables".into(),
+                ));
+            }
+            let Some(file) = pt.get_ref().file.clone() else {
+                return Err(InputError::Missing {
+                    origin: origin.clone(),
+                    line,
+                    key: "points.file".into(),
+                    help: "a CSV table, relative to the sweep file: a header naming the params, one row per scene".into(),
+                });
+            };
+            let path = dir.join(&file);
+            for a in points::read(&path, &scene_spec, &base)? {
+                axes.push((None, a));
+            }
+            inputs.push(path);
+            layout = Layout::Points { file };
+        }
+        let sample = match &layout {
+            Layout::Sample {
+                design,
+                points,
+                seed,
+            } => Some((*design, *points, *seed)),
+            _ => None,
+        };
         for a in raw.axis.unwrap_or_default() {
             let line = Some(src.line(a.span().start));
             let a = a.into_inner();
@@ -161,6 +292,96 @@ impl Sweep {
             };
             let param = Param::parse(&name)
                 .map_err(|allowed| invalid(line, "axis.param", format!("{name:?}"), allowed))?;
+            if let Some((d, num, seed)) = sample {
+                let bad = |allowed: &str| {
+                    invalid(
+                        line,
+                        &name,
+                        format!("{:?}", a.range.as_deref().unwrap_or_default()),
+                        allowed.into(),
+                    )
+                };
+                if a.values.is_some() || a.linspace.is_some() || a.logspace.is_some() {
+                    return Err(bad("with [sample], each axis gives `range = [lo, hi]` (and optionally `scale = \"log\"`), not values/linspace/logspace"));
+                }
+                let log = match a.scale.as_deref() {
+                    None | Some("linear") => false,
+                    Some("log") => true,
+                    Some(other) => {
+                        return Err(invalid(
+                            line,
+                            "scale",
+                            format!("{other:?}"),
+                            "\"linear\" or \"log\"".into(),
+                        ))
+                    }
+                };
+                let (lo, hi) = match a.range.as_deref() {
+                    Some([lo, hi]) if lo.is_finite() && hi.is_finite() && lo <= hi => (*lo, *hi),
+                    _ => return Err(bad("range = [lo, hi] with finite lo ≤ hi")),
+                };
+                if log && lo <= 0.0 {
+                    return Err(bad("lo > 0 for scale = \"log\""));
+                }
+                let integer = param.kind == axis::Kind::Integer;
+                if integer && (lo.fract() != 0.0 || hi.fract() != 0.0) {
+                    return Err(bad("whole numbers: this parameter is an integer"));
+                }
+                if param.kind == axis::Kind::Glue {
+                    return Err(bad(
+                        "a number: glue patterns are not sampled (list them with [points])",
+                    ));
+                }
+                if d == design::Design::Sobol && axes.len() >= design::MAX_SOBOL_AXES {
+                    return Err(bad(&format!(
+                        "at most {} axes in a Sobol design",
+                        design::MAX_SOBOL_AXES
+                    )));
+                }
+                let values = Values::Sample(axis::Sample {
+                    design: d,
+                    axis: axes.len(),
+                    num: num as usize,
+                    seed,
+                    lo,
+                    hi,
+                    log,
+                    integer,
+                });
+                if let Some((l0, a0)) = axes
+                    .iter()
+                    .find(|(_, b): &&(Option<usize>, Axis)| b.param.overlaps(&param))
+                {
+                    return Err(invalid(
+                        line,
+                        "axis.param",
+                        format!("{name:?}"),
+                        format!(
+                            "sets what the axis {:?}{} already sets: each scene quantity may have one axis",
+                            a0.name,
+                            l0.map_or(String::new(), |l| format!(" (line {l})"))
+                        ),
+                    ));
+                }
+                axes.push((
+                    line,
+                    Axis {
+                        name,
+                        param,
+                        values,
+                        line,
+                    },
+                ));
+                continue;
+            }
+            if a.range.is_some() || a.scale.is_some() {
+                return Err(invalid(
+                    line,
+                    &name,
+                    "range/scale".into(),
+                    "`range` and `scale` belong to a sampling design: add a [sample] table, or give values/linspace/logspace".into(),
+                ));
+            }
             let kinds = [
                 a.values.is_some(),
                 a.linspace.is_some(),
@@ -287,8 +508,16 @@ impl Sweep {
             ));
         }
 
+        if layout != Layout::Grid && axes.is_empty() {
+            return Err(invalid(
+                None,
+                "axis",
+                "(none)".into(),
+                "a [sample] needs `[[axis]]` tables with `range = [lo, hi]`".into(),
+            ));
+        }
         let mut total: u64 = 1;
-        for (line, a) in &axes {
+        for (line, a) in axes.iter().filter(|_| layout == Layout::Grid) {
             total = total
                 .checked_mul(a.values.len() as u64)
                 .filter(|t| *t <= MAX_SCENES)
@@ -300,6 +529,9 @@ impl Sweep {
                         format!("the product of all axes must stay ≤ {MAX_SCENES} scenes"),
                     )
                 })?;
+        }
+        if layout != Layout::Grid {
+            total = axes[0].1.values.len() as u64;
         }
         let balls_axis = axes.iter().find(|(_, a)| a.param.name == "balls");
         let num = |v: &Value| if let Value::Num(x) = v { *x } else { 0.0 };
@@ -319,7 +551,9 @@ impl Sweep {
             .iter()
             .map(|(_, a)| a.values.sample(VALIDATION_SAMPLES))
             .collect();
-        for (k, (line, a)) in axes.iter().enumerate() {
+        // A point list's rows were each checked whole when it was read.
+        let per_axis = !matches!(layout, Layout::Points { .. });
+        for (k, (line, a)) in axes.iter().enumerate().filter(|_| per_axis) {
             for v in &samples[k] {
                 let n = if balls_axis.is_some() { width } else { base.n };
                 if let (Some(i), Some(lim)) = (a.param.index, a.param.index_limit(n)) {
@@ -373,9 +607,18 @@ impl Sweep {
             total,
             width,
             refine: None,
+            layout,
         };
         if let Some(r) = raw.refine {
             let line = Some(src.line(r.span().start));
+            if sweep.layout != Layout::Grid {
+                return Err(invalid(
+                    line,
+                    "refine",
+                    "with [points] or [sample]".into(),
+                    "a grid of [[axis]] tables to refine".into(),
+                ));
+            }
             sweep.refine = Some(sweep.refine_spec(r.into_inner(), &|key, value, allowed| {
                 invalid(line, key, value, allowed)
             })?);
@@ -506,7 +749,11 @@ impl Sweep {
     /// slowest), without allocating: the one place ids become axis values.
     fn axis_indices(&self, id: u64) -> impl Iterator<Item = (&Axis, usize)> + '_ {
         let mut stride = self.total;
+        let grid = self.layout == Layout::Grid;
         self.axes.iter().map(move |a| {
+            if !grid {
+                return (a, id as usize);
+            }
             let n = a.values.len() as u64;
             stride /= n;
             (a, ((id / stride) % n) as usize)
