@@ -709,7 +709,7 @@ fn refinement_computes_few_scenes_with_the_full_grids_bytes_and_fills_the_map() 
 }
 
 #[test]
-fn refinement_in_three_axes_with_a_threshold_and_its_refusals() {
+fn refinement_in_three_axes_with_a_threshold_shards_parquet_and_refusals() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let axes = "[[axis]]\nparam = \"mass[2]\"\nlogspace = [0.0064, 0.64, 33]\n[[axis]]\nparam = \"gap\"\nlinspace = [0.0, 2e-5, 17]\n[[axis]]\nparam = \"velocity[0]\"\nvalues = [0.5, 1.0, 2.0]\n";
@@ -750,10 +750,37 @@ fn refinement_in_three_axes_with_a_threshold_and_its_refusals() {
     let r = refined.to_str().unwrap();
     let x = d.join("x.csv");
     let x = x.to_str().unwrap();
-    refused(&["sweep", r, "--out", x, "--shard", "1/2"], "--shard");
-    refused(
-        &["sweep", r, "--out", d.join("x.parquet").to_str().unwrap()],
-        "parquet",
+    // Shards of a refined sweep merge into the unsharded refined file.
+    let mut parts = vec![];
+    for k in 1..=3 {
+        let part = d.join(format!("part{k}.csv"));
+        sweep(&[
+            r,
+            "--out",
+            part.to_str().unwrap(),
+            "--backend",
+            "cpu",
+            "--shard",
+            &format!("{k}/3"),
+        ]);
+        parts.push(part.to_str().unwrap().to_string());
+    }
+    let merged = d.join("merged.csv");
+    let mut args = vec!["merge".to_string()];
+    args.extend(parts);
+    args.extend(["--out".into(), merged.to_str().unwrap().into()]);
+    ok(&args.iter().map(String::as_str).collect::<Vec<_>>());
+    assert_eq!(fs::read(&merged).unwrap(), fs::read(&ref_csv).unwrap());
+    // As Parquet: the same rows, typed.
+    let pq = d.join("ref.parquet");
+    sweep(&[r, "--out", pq.to_str().unwrap(), "--backend", "cpu"]);
+    let (header, rows) = hertz_cradle::output::parquet_file::read_text(&pq).unwrap();
+    let text = fs::read_to_string(&ref_csv).unwrap();
+    assert_eq!(header.join(","), text.lines().next().unwrap());
+    let csv_rows: Vec<String> = text.lines().skip(1).map(str::to_string).collect();
+    assert_eq!(
+        rows.iter().map(|r| r.join(",")).collect::<Vec<_>>(),
+        csv_rows
     );
     for (refine, needle) in [
         ("[refine]\ncolumn = \"v_4\"\n", "needs `threshold`"),

@@ -1,8 +1,9 @@
 //! A refined table (`[refine]`) as the full grid: every scene that was not
 //! computed takes the row of its nearest computed scene (Euclidean distance
 //! in grid steps, `sweep::refine::nearest`), with its own id and axis
-//! values. `cradle fill` writes it; `cradle plot` draws it. Computed rows
-//! are copied byte for byte, so they equal a full sweep's.
+//! values. `cradle fill` writes it (CSV, from a CSV or Parquet table);
+//! `cradle plot` draws it. Computed rows of a CSV are copied byte for byte,
+//! so they equal a full sweep's.
 
 use std::collections::HashMap;
 use std::io::{BufRead, BufReader, Write};
@@ -55,9 +56,27 @@ pub fn grid(table: &Path) -> Result<Option<Grid>> {
 /// Every row of the full grid, in id order, to `out` (header first):
 /// computed rows as they are, the others filled from their nearest.
 pub fn fill(table: &Path, g: &Grid, out: &mut dyn FnMut(&[u8]) -> Result<()>) -> Result<u64> {
-    let mut r = BufReader::new(
-        std::fs::File::open(table).with_context(|| format!("cannot read {}", table.display()))?,
-    );
+    // A Parquet table is read as the CSV's text (a refined table is small).
+    let source: Box<dyn std::io::Read> = if super::parquet_file::is_parquet(table) {
+        let (header, rows) = super::parquet_file::read_text(table)?;
+        let mut bytes = Vec::new();
+        for row in std::iter::once(&header).chain(&rows) {
+            for (k, f) in row.iter().enumerate() {
+                if k > 0 {
+                    bytes.push(b',');
+                }
+                super::row::push_csv_field(&mut bytes, f);
+            }
+            bytes.push(b'\n');
+        }
+        Box::new(std::io::Cursor::new(bytes))
+    } else {
+        Box::new(
+            std::fs::File::open(table)
+                .with_context(|| format!("cannot read {}", table.display()))?,
+        )
+    };
+    let mut r = BufReader::new(source);
     let mut header = Vec::new();
     r.read_until(b'\n', &mut header)?;
     out(&header)?;

@@ -42,6 +42,13 @@ struct Part {
     ids: (u64, u64),
 }
 
+impl Part {
+    /// A shard of a refined sweep: it holds some of its ids, not all.
+    fn sparse(&self) -> bool {
+        self.sidecar.get("refine").is_some()
+    }
+}
+
 /// The fingerprint with its shard removed: what every part must share.
 fn sweep_key(fingerprint: &str) -> Option<Value> {
     let mut v: Value = serde_json::from_str(fingerprint).ok()?;
@@ -202,6 +209,7 @@ pub fn merge(inputs: &[PathBuf], out: &Path) -> Result<u64> {
             .map(|p| PartFile {
                 path: &p.path,
                 ids: p.ids,
+                sparse: p.sparse(),
             })
             .collect::<Vec<_>>();
         super::parquet_file::merge(&files, &tmp, &|p, what| bad(p, what))
@@ -245,6 +253,37 @@ pub fn merge(inputs: &[PathBuf], out: &Path) -> Result<u64> {
     );
     for k in ["resumed_from_row", "wall_s_this_run", "stages_s"] {
         obj.remove(k);
+    }
+    if let Some(r) = obj.get_mut("refine").and_then(|r| r.as_object_mut()) {
+        // The parts' levels added up (the same strides in every part).
+        let mut levels: Vec<(u64, u64)> = vec![];
+        for p in &parts {
+            let ls = p.sidecar["refine"]["levels"]
+                .as_array()
+                .cloned()
+                .unwrap_or_default();
+            for (k, l) in ls.iter().enumerate() {
+                let (stride, scenes) = (
+                    l["stride"].as_u64().unwrap_or(0),
+                    l["scenes"].as_u64().unwrap_or(0),
+                );
+                match levels.get_mut(k) {
+                    Some(e) => e.1 += scenes,
+                    None => levels.push((stride, scenes)),
+                }
+            }
+        }
+        r.insert(
+            "levels".into(),
+            levels
+                .iter()
+                .map(|(s, n)| serde_json::json!({"stride": s, "scenes": n}))
+                .collect::<Vec<_>>()
+                .into(),
+        );
+        r.insert("scenes_computed".into(), n.into());
+        r.insert("fraction_computed".into(), (n as f64 / total as f64).into());
+        r.remove("region_first_axis");
     }
     write_atomic(
         &super::sidecar::path(out),
@@ -296,6 +335,9 @@ fn copy_rows(parts: &[Part], tmp: &Path) -> Result<u64> {
                 ));
             }
             let id = first_id(&line).ok_or_else(|| bad(&p.path, "a row without an id"))?;
+            if p.sparse() && id >= next && id < p.ids.1 {
+                next = id;
+            }
             if id != next || id >= p.ids.1 {
                 return Err(bad(
                     &p.path,
@@ -310,7 +352,7 @@ fn copy_rows(parts: &[Part], tmp: &Path) -> Result<u64> {
             next += 1;
             n += 1;
         }
-        if next != p.ids.1 {
+        if next != p.ids.1 && !p.sparse() {
             return Err(bad(
                 &p.path,
                 format!(

@@ -415,6 +415,8 @@ fn arrow_cast_dictionary(col: &ArrayRef) -> Result<ArrayRef> {
 pub struct PartFile<'a> {
     pub path: &'a Path,
     pub ids: (u64, u64),
+    /// A shard of a refined sweep: some of its ids, ascending.
+    pub sparse: bool,
 }
 
 /// Join Parquet `parts` (in id order) into `out`, their row groups copied
@@ -464,6 +466,9 @@ pub fn merge(
             let ids = b.column(0).as_primitive::<Int64Type>();
             for id in ids.iter() {
                 let id = id.unwrap_or(-1);
+                if p.sparse && id >= 0 && id as u64 >= next && (id as u64) < p.ids.1 {
+                    next = id as u64;
+                }
                 if id as u64 != next || id < 0 || id as u64 >= p.ids.1 {
                     return Err(bad(
                         p.path,
@@ -476,7 +481,7 @@ pub fn merge(
                 next += 1;
             }
         }
-        if next != p.ids.1 {
+        if next != p.ids.1 && !p.sparse {
             return Err(bad(
                 p.path,
                 format!(
@@ -486,7 +491,7 @@ pub fn merge(
             ));
         }
         j.append(&open()?, &meta)?;
-        n += next - p.ids.0;
+        n += meta.file_metadata().num_rows() as u64;
     }
     let Some((j, _)) = joiner else {
         anyhow::bail!("nothing to merge");

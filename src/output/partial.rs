@@ -57,6 +57,12 @@ pub struct Partial {
     /// Rows of each section (a refinement level), each in id order; the
     /// finished file interleaves them in id order. Empty: one section.
     pub sections: Vec<u64>,
+    /// Only the rows with ids in [lo, hi) go into the finished file (a
+    /// shard of a refined sweep computes a little beyond its ids).
+    pub keep: Option<(u64, u64)>,
+    /// The finished file is Parquet of this schema and these column types,
+    /// made from the CSV rows of the partial file (a refined sweep).
+    pub to_parquet: Option<(arrow_schema::SchemaRef, Vec<super::row::ColType>)>,
 }
 
 /// Every file written beside an output `FILE` (by a sweep or a merge): the
@@ -174,6 +180,8 @@ impl Partial {
                 ok_done: ok,
                 wall_before,
                 sections: vec![],
+                keep: None,
+                to_parquet: None,
             }));
         }
         if resume && out.exists() {
@@ -211,6 +219,8 @@ impl Partial {
             ok_done: 0,
             wall_before: 0.0,
             sections: vec![],
+            keep: None,
+            to_parquet: None,
         }))
     }
 
@@ -242,9 +252,18 @@ impl Partial {
             .with_context(|| format!("cannot write {}", self.partial.display()))?;
         drop(self.file);
         let done = match &self.format {
-            TableFormat::Csv if self.sections.len() > 1 => {
+            TableFormat::Csv
+                if self.sections.len() > 1 || self.keep.is_some() || self.to_parquet.is_some() =>
+            {
                 let tmp = with_suffix(&self.path, TMP);
-                let r = interleave(&self.partial, self.head_len, &self.sections, &tmp);
+                let r = rewrite(
+                    &self.partial,
+                    self.head_len,
+                    &self.sections,
+                    self.keep,
+                    self.to_parquet.as_ref(),
+                    &tmp,
+                );
                 if r.is_err() {
                     let _ = fs::remove_file(&tmp);
                 }
@@ -339,15 +358,92 @@ fn complete_frames(partial: &Path, head: &[u8]) -> Result<(u64, u64, u64)> {
     ))
 }
 
-/// Write `partial`'s header and its `sections` (consecutive runs of rows,
-/// each in id order) to `out`, the rows of all sections in id order.
-fn interleave(partial: &Path, head_len: u64, sections: &[u64], out: &Path) -> Result<()> {
-    let ctx = || format!("cannot write {}", out.display());
+/// The finished file of a refined sweep at `out`: the rows of the
+/// partial file's sections in id order (only `keep`'s), as CSV or as
+/// Parquet (`to_parquet`).
+fn rewrite(
+    partial: &Path,
+    head_len: u64,
+    sections: &[u64],
+    keep: Option<(u64, u64)>,
+    to_parquet: Option<&(arrow_schema::SchemaRef, Vec<super::row::ColType>)>,
+    out: &Path,
+) -> Result<()> {
+    {
+        let ctx = || format!("cannot write {}", out.display());
+        let mut w = std::io::BufWriter::new(File::create(out).with_context(ctx)?);
+        let keep = keep.unwrap_or((0, u64::MAX));
+        match to_parquet {
+            None => {
+                let mut head = vec![0u8; head_len as usize];
+                std::io::Read::read_exact(&mut File::open(partial)?, &mut head)?;
+                w.write_all(&head).with_context(ctx)?;
+                interleave(partial, head_len, sections, &mut |id, line| {
+                    if (keep.0..keep.1).contains(&id) {
+                        w.write_all(line).with_context(ctx)?;
+                    }
+                    Ok(())
+                })?;
+                w.flush().with_context(ctx)?;
+                w.get_ref().sync_all().with_context(ctx)?;
+            }
+            Some((schema, types)) => {
+                use super::parquet_file::{Columns, SEGMENT_ROWS};
+                let mut writer = parquet::arrow::ArrowWriter::try_new(
+                    w,
+                    schema.clone(),
+                    Some(super::parquet_file::properties()),
+                )?;
+                let mut cols = Columns::new(schema, types, SEGMENT_ROWS as usize);
+                let mut n = 0u64;
+                interleave(partial, head_len, sections, &mut |id, line| {
+                    if !(keep.0..keep.1).contains(&id) {
+                        return Ok(());
+                    }
+                    let mut r = csv::ReaderBuilder::new()
+                        .has_headers(false)
+                        .from_reader(line);
+                    let rec = r
+                        .records()
+                        .next()
+                        .transpose()?
+                        .with_context(|| format!("an empty row in {}", partial.display()))?;
+                    for (f, t) in rec.iter().zip(types) {
+                        cols.push(super::row::Field::parse(f, *t));
+                    }
+                    n += 1;
+                    if n.is_multiple_of(SEGMENT_ROWS) {
+                        let full = std::mem::replace(
+                            &mut cols,
+                            Columns::new(schema, types, SEGMENT_ROWS as usize),
+                        );
+                        writer.write(&full.finish()?)?;
+                    }
+                    Ok(())
+                })?;
+                writer.write(&cols.finish()?)?;
+                let w = writer.into_inner()?;
+                w.into_inner()
+                    .map_err(|e| e.into_error())
+                    .with_context(ctx)?
+                    .sync_all()
+                    .with_context(ctx)?;
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The rows of `partial`'s `sections` (consecutive runs of rows after its
+/// first `head_len` bytes, each in id order) to `sink` with their ids, the
+/// rows of all sections in id order.
+fn interleave(
+    partial: &Path,
+    head_len: u64,
+    sections: &[u64],
+    sink: &mut dyn FnMut(u64, &[u8]) -> Result<()>,
+) -> Result<()> {
     let open = || File::open(partial).with_context(|| format!("cannot read {}", partial.display()));
-    let mut w = std::io::BufWriter::new(File::create(out).with_context(ctx)?);
-    let mut head = vec![0u8; head_len as usize];
-    std::io::Read::read_exact(&mut open()?, &mut head)?;
-    w.write_all(&head).with_context(ctx)?;
     // One reader per section, at its first row.
     let mut readers = vec![];
     let mut r = BufReader::new(open()?);
@@ -391,11 +487,9 @@ fn interleave(partial: &Path, head_len: u64, sections: &[u64], out: &Path) -> Re
         .filter(|&k| heads[k].is_some())
         .min_by_key(|&k| id_of(heads[k].as_deref().unwrap_or_default()))
     {
-        w.write_all(heads[k].as_deref().unwrap_or_default())
-            .with_context(ctx)?;
+        let line = heads[k].take().unwrap_or_default();
+        sink(id_of(&line), &line)?;
         advance(k, &mut heads)?;
     }
-    w.flush().with_context(ctx)?;
-    w.get_ref().sync_all().with_context(ctx)?;
     Ok(())
 }

@@ -212,6 +212,19 @@ pub enum Field<'a> {
     Null,
 }
 
+impl<'a> Field<'a> {
+    /// A CSV cell of a column of type `t` back as the field it was written
+    /// from (the CSV's numbers are shortest round-trip text: exact).
+    pub fn parse(cell: &'a str, t: ColType) -> Field<'a> {
+        match t {
+            _ if cell.is_empty() => Field::Null,
+            ColType::Int => cell.parse().map_or(Field::Null, Field::Int),
+            ColType::Num => cell.parse().map_or(Field::Null, Field::Num),
+            ColType::Text | ColType::Status => Field::Text(cell),
+        }
+    }
+}
+
 /// The type of a column (its Parquet/Arrow type: `Int` → Int64, `Num` →
 /// Float64, `Text` → UTF-8, `Status` → a dictionary-encoded string).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

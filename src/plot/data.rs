@@ -20,18 +20,6 @@ fn data_err(path: &Path, what: impl Into<String>) -> InputError {
 
 impl Table {
     pub fn read(path: &Path) -> Result<Table, InputError> {
-        if crate::output::parquet_file::is_parquet(path) {
-            let (header, rows) = crate::output::parquet_file::read_text(path)
-                .map_err(|e| data_err(path, format!("not a readable Parquet table: {e:#}")))?;
-            if rows.is_empty() {
-                return Err(data_err(path, "has no rows"));
-            }
-            return Ok(Table {
-                path: path.to_path_buf(),
-                header,
-                rows,
-            });
-        }
         // A refined sweep's table is drawn as the full grid (`output::fill`).
         let filled = match crate::output::fill::grid(path) {
             Ok(Some(g)) => {
@@ -45,6 +33,18 @@ impl Table {
             }
             _ => None,
         };
+        if filled.is_none() && crate::output::parquet_file::is_parquet(path) {
+            let (header, rows) = crate::output::parquet_file::read_text(path)
+                .map_err(|e| data_err(path, format!("not a readable Parquet table: {e:#}")))?;
+            if rows.is_empty() {
+                return Err(data_err(path, "has no rows"));
+            }
+            return Ok(Table {
+                path: path.to_path_buf(),
+                header,
+                rows,
+            });
+        }
         let source: Box<dyn std::io::Read> = match filled {
             Some(bytes) => Box::new(std::io::Cursor::new(bytes)),
             None => Box::new(std::fs::File::open(path).map_err(|error| InputError::Read {

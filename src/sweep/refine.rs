@@ -85,6 +85,8 @@ pub struct Refiner {
     cells: Vec<Cell>,
     /// Every point computed so far.
     pub computed: BTreeSet<u64>,
+    /// The part of the first axis refined: [first, last] index.
+    range0: (u64, u64),
 }
 
 /// The sub-grid indices of one axis of `n` values at `stride`.
@@ -127,7 +129,21 @@ impl Refiner {
             stride,
             cells: vec![],
             computed: BTreeSet::new(),
+            range0: (0, dims.first().map_or(0, |n| n - 1)),
         }
+    }
+
+    /// A refinement of the slab of the grid whose first-axis index lies in
+    /// `[first, last]` (both on the coarse lattice: a shard's part).
+    pub fn with_range(dims: &[u64], stride: u64, (first, last): (u64, u64)) -> Refiner {
+        let mut r = Refiner::new(dims, stride);
+        r.range0 = (first, last);
+        r
+    }
+
+    /// The coarse lattice of the first axis.
+    pub fn coarse_first_axis(dims: &[u64], stride: u64) -> Vec<u64> {
+        lattice(dims[0], stride)
     }
 
     fn id(&self, idx: &[u64]) -> u64 {
@@ -148,7 +164,9 @@ impl Refiner {
 
     /// The coarse level: its scene ids, ascending.
     pub fn start(&mut self) -> Vec<u64> {
-        let lat: Vec<Vec<u64>> = self.dims.iter().map(|&n| lattice(n, self.stride)).collect();
+        let mut lat: Vec<Vec<u64>> = self.dims.iter().map(|&n| lattice(n, self.stride)).collect();
+        let (first, last) = self.range0;
+        lat[0].retain(|&i| (first..=last).contains(&i));
         let intervals: Vec<Vec<(u64, u64)>> = lat
             .iter()
             .map(|l| {
@@ -358,24 +376,45 @@ pub fn run(
         }
         .into()
     };
-    if opts.shard.is_some() {
-        return Err(refuse(
-            "--shard",
-            "not yet with a refined sweep (its levels depend on each other): run it whole, or split the grid into several sweep files",
-        ));
-    }
-    if opts.parquet {
-        return Err(refuse(
-            "--format parquet",
-            "not yet with a refined sweep: write CSV (a refined table is small)",
-        ));
-    }
+    // A shard refines a slab of whole coarse steps of the first axis, and
+    // one coarse step beyond it on each side, so that every point on its
+    // borders is computed exactly when the whole sweep would compute it; it
+    // keeps the rows of its own slab (a contiguous id range).
+    let dims = sweep.dims();
+    let coarse = Refiner::coarse_first_axis(&dims, spec.stride);
+    let steps0 = (coarse.len() - 1) as u64;
+    let per_id0: u64 = dims[1..].iter().product();
+    let ((lo, hi), region) = match opts.shard {
+        None => ((0, sweep.total), (0, dims[0] - 1)),
+        Some((k, n)) => {
+            if dims[0] < 2 {
+                return Err(refuse(
+                    "--shard",
+                    "a refined sweep is sharded along its first axis, which needs 2 or more values",
+                ));
+            }
+            let (c0, c1) = ((k - 1) * steps0 / n, k * steps0 / n);
+            let lo = coarse[c0 as usize] * per_id0;
+            let hi = if c1 == steps0 {
+                sweep.total
+            } else {
+                coarse[c1 as usize] * per_id0
+            };
+            let region = (
+                coarse[c0.saturating_sub(1) as usize],
+                coarse[(c1 + 1).min(steps0) as usize],
+            );
+            ((lo, hi), region)
+        }
+    };
     let header = sweep.header();
     let col = header
         .iter()
         .position(|h| *h == spec.column)
         .expect("checked when the sweep was read");
-    let o = super::run::open(sweep, opts, 0, sweep.total)?;
+    // The partial file holds CSV rows (levels as sections) whatever the
+    // output's format; a Parquet output is made from them at the end.
+    let o = super::run::open(sweep, opts, lo, hi - lo, true)?;
     let Some(mut out) = o.out else {
         return Ok(super::run::Summary {
             already_complete: true,
@@ -416,9 +455,9 @@ pub fn run(
             earlier.push((id, line.clone()));
         }
     }
-    let (ok_before, wall_before, resumed_from) = (out.ok_done, out.wall_before, out.rows_done);
-    let mut refiner = Refiner::new(&sweep.dims(), spec.stride);
-    let mut level = refiner.start();
+    let (wall_before, resumed_from) = (out.wall_before, out.rows_done);
+    let mut refiner = Refiner::with_range(&dims, spec.stride, region);
+    let mut level = if lo < hi { refiner.start() } else { vec![] };
     let mut stats: Vec<LevelStats> = vec![];
     let mut sections = vec![];
     let (mut ok_run, mut done_run, mut consumed) = (0u64, 0u64, 0usize);
@@ -483,18 +522,48 @@ pub fn run(
     bar.finish_and_clear();
     let computed: u64 = sections.iter().sum();
     out.sections = sections;
+    if opts.shard.is_some() {
+        out.keep = Some((lo, hi));
+    }
+    if opts.parquet {
+        out.to_parquet = Some((sweep.arrow_schema(), sweep.column_types()));
+    }
+    // What the finished file holds: this shard's rows, and how many are ok.
+    let status = 1 + sweep.axes.len();
+    let (rows, ok_rows) = {
+        let partial = crate::output::partial::partial_path(&opts.out);
+        let mut r = std::io::BufReader::new(std::fs::File::open(&partial)?);
+        let mut line = Vec::new();
+        r.read_until(b'\n', &mut line)?;
+        let (mut rows, mut ok) = (0u64, 0u64);
+        loop {
+            line.clear();
+            if r.read_until(b'\n', &mut line)? == 0 {
+                break;
+            }
+            let mut f = line.split(|&b| b == b',');
+            let id: u64 = f
+                .next()
+                .and_then(|t| std::str::from_utf8(t).ok()?.parse().ok())
+                .unwrap_or(u64::MAX);
+            if (lo..hi).contains(&id) {
+                rows += 1;
+                ok += (f.nth(status - 1) == Some(b"ok")) as u64;
+            }
+        }
+        (rows, ok)
+    };
     let wall_s = t0.elapsed().as_secs_f64();
     let refine = serde_json::json!({
         "column": spec.column,
         "threshold": spec.threshold,
         "coarse_stride": spec.stride,
-        "grid": sweep.dims(),
+        "grid": dims,
+        "region_first_axis": [region.0, region.1],
         "levels": stats,
         "scenes_computed": computed,
         "fraction_computed": computed as f64 / sweep.total as f64,
     });
-    // Rows replayed from the partial file are counted in ok_before.
-    let ok_all = ok_before + ok_run;
     super::run::finish(
         sweep,
         opts,
@@ -502,9 +571,9 @@ pub fn run(
         &o.fingerprint,
         out,
         super::run::Counts {
-            ids: (0, sweep.total),
-            ok: ok_all,
-            done: computed,
+            ids: (lo, hi),
+            ok: ok_rows,
+            done: rows,
             wall_s: wall_before + wall_s,
             resumed_from_row: resumed_from,
             wall_s_this_run: wall_s,

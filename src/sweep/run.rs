@@ -167,7 +167,14 @@ pub(super) struct Opening {
     pub bar: indicatif::ProgressBar,
 }
 
-pub(super) fn open(sweep: &Sweep, opts: &Options, lo: u64, len: u64) -> Result<Opening> {
+/// `csv_partial`: the partial file holds CSV rows even for a Parquet output.
+pub(super) fn open(
+    sweep: &Sweep,
+    opts: &Options,
+    lo: u64,
+    len: u64,
+    csv_partial: bool,
+) -> Result<Opening> {
     // One writer per output, for the whole run, before anything is touched.
     let lock = OutputLock::acquire(&opts.out)?;
     // Everything a resumed run must share with the first, in one string.
@@ -184,7 +191,7 @@ pub(super) fn open(sweep: &Sweep, opts: &Options, lo: u64, len: u64) -> Result<O
         w.write_record(sweep.header())?;
         w.flush()?;
     }
-    let format = if opts.parquet {
+    let format = if opts.parquet && !csv_partial {
         TableFormat::Parquet(sweep.arrow_schema())
     } else {
         TableFormat::Csv
@@ -276,7 +283,7 @@ pub fn run(sweep: &Sweep, opts: &Options, backend: &dyn Backend) -> Result<Summa
         return super::refine::run(sweep, spec, opts, backend);
     }
     let (lo, hi) = sweep.shard_range(opts.shard, &opts.overrides);
-    let o = open(sweep, opts, lo, hi - lo)?;
+    let o = open(sweep, opts, lo, hi - lo, false)?;
     let Some(out) = o.out else {
         return Ok(Summary {
             already_complete: true,
