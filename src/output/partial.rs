@@ -88,7 +88,7 @@ fn spec_path(out: &Path) -> PathBuf {
 
 /// What `open` found.
 pub enum Opened {
-    Writing(Partial),
+    Writing(Box<Partial>),
     /// `--resume` of a run whose output is already complete, made by this
     /// same sweep (the sidecar's fingerprint agrees).
     AlreadyComplete,
@@ -168,7 +168,7 @@ impl Partial {
                 .with_context(|| format!("cannot open {}", partial.display()))?;
             file.set_len(keep)?;
             file.seek(SeekFrom::End(0))?;
-            return Ok(Opened::Writing(Partial {
+            return Ok(Opened::Writing(Box::new(Partial {
                 path: out.to_path_buf(),
                 format,
                 head_len: header.len() as u64,
@@ -182,7 +182,7 @@ impl Partial {
                 sections: vec![],
                 keep: None,
                 to_parquet: None,
-            }));
+            })));
         }
         if resume && out.exists() {
             let sidecar = super::sidecar::path(out);
@@ -207,7 +207,7 @@ impl Partial {
         file.write_all(header)
             .and_then(|_| file.sync_data())
             .with_context(|| format!("cannot write {}", partial.display()))?;
-        Ok(Opened::Writing(Partial {
+        Ok(Opened::Writing(Box::new(Partial {
             path: out.to_path_buf(),
             format,
             head_len: header.len() as u64,
@@ -221,7 +221,7 @@ impl Partial {
             sections: vec![],
             keep: None,
             to_parquet: None,
-        }))
+        })))
     }
 
     /// Append complete rows (CSV) or a whole frame (Parquet) and push them

@@ -198,7 +198,7 @@ pub(super) fn open(
     };
     let out = match Partial::open(&opts.out, format, &header, &fingerprint, opts.resume)? {
         Opened::AlreadyComplete => None,
-        Opened::Writing(w) => Some(w),
+        Opened::Writing(w) => Some(*w),
     };
     let bar = if opts.progress && std::io::stderr().is_terminal() && out.is_some() {
         let b = indicatif::ProgressBar::new(len);
