@@ -68,6 +68,24 @@ pub enum Command {
         #[arg(long, value_name = "FILE")]
         out: PathBuf,
     },
+    /// Explore a sweep's phase map in the browser: hover a cell for its row,
+    /// click it to see that cradle (trace, animation, comparison models).
+    #[command(
+        after_help = "Examples:\n  cradle explore results/mass_gap.csv\n  cradle explore big.parquet --port 9000 --open"
+    )]
+    Explore {
+        /// A sweep's table (CSV or Parquet, its sidecar beside it).
+        table: PathBuf,
+        #[arg(long, default_value_t = 8080)]
+        port: u16,
+        /// Address to listen on; anything but 127.0.0.1 exposes the page
+        /// (and the CPU it runs scenes on) to the network.
+        #[arg(long, default_value = "127.0.0.1")]
+        host: String,
+        /// Open the page in the default browser.
+        #[arg(long)]
+        open: bool,
+    },
     /// Plot a phase diagram of an outcome table, or a trace's space-time diagram.
     #[command(
         after_help = "Examples:\n  cradle plot results/mass_gap.csv --x gap --y 'mass[2]' --z ejected --out ejected.png\n  cradle plot big.csv --x gap --y velocity[0] --z v_4 --where balls=5 --out v4.svg\n  cradle plot --trace trace.csv --out trace.png"

@@ -12,6 +12,7 @@ pub mod cli;
 pub mod config;
 pub mod engine;
 pub mod error;
+pub mod explore;
 pub mod output;
 pub mod plot;
 pub mod scene;

@@ -82,6 +82,25 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             );
             Ok(())
         }
+        Command::Explore {
+            table,
+            port,
+            host,
+            open,
+        } => {
+            if host != "127.0.0.1" && host != "localhost" && host != "::1" {
+                eprintln!("cradle: warning: listening on {host}: anyone who can reach this machine can see the table and run scenes on it");
+            }
+            hertz_cradle::explore::serve(&table, &host, port, &|url| {
+                eprintln!(
+                    "cradle: exploring {} at {url} (Ctrl-C to stop)",
+                    table.display()
+                );
+                if open {
+                    let _ = std::process::Command::new("xdg-open").arg(url).spawn();
+                }
+            })
+        }
         Command::Fill { table, out } => {
             let target = guard::output("--out", &out, std::slice::from_ref(&table), &[".tmp"])?;
             let Some(g) = hertz_cradle::output::fill::grid(&table)? else {

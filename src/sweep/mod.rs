@@ -765,6 +765,21 @@ impl Sweep {
         self.axis_indices(id).map(|(_, i)| i).collect()
     }
 
+    /// Scene `id` as written (the base scene with its axis values), for a
+    /// scene file.
+    pub fn scene_spec(&self, id: u64) -> anyhow::Result<SceneSpec> {
+        anyhow::ensure!(
+            id < self.total,
+            "no scene {id}: the sweep has {}",
+            self.total
+        );
+        let mut spec = self.scene.clone();
+        for (a, i) in self.axis_indices(id) {
+            axis::apply(&mut spec, &self.base, &a.param, &a.values.get(i));
+        }
+        Ok(spec)
+    }
+
     /// The scene with id `id`, or why this combination of values is invalid.
     pub fn scene(&self, id: u64) -> Result<Scene, InputError> {
         if self.axes.is_empty() {

@@ -1,0 +1,544 @@
+//! `cradle explore TABLE`: a local web page to explore a sweep's phase map
+//! (axum on tokio; the page and its script embedded in the binary).
+//!
+//! Routes (nothing else is served; no path from a request reaches the file
+//! system):
+//! - `GET /`: the page (`page.html`).
+//! - `GET /api/meta`: the table's columns, its grid (axes, their values),
+//!   the file's name.
+//! - `GET /api/map?x=AXIS&y=AXIS&z=COLUMN&at=I,J,…`: the z values of the
+//!   x × y slice of the grid at the given indices of the other axes.
+//! - `GET /api/row?id=N`: one row as text.
+//! - `GET /api/scene?id=N`: that scene run again by the CPU engine from the
+//!   sweep named in the sidecar: its outcome, its trace (at most
+//!   [`MAX_TRACE_ROWS`] rows, said in the reply) and its outcome under the
+//!   `hard-sphere` and `closure` models.
+//! - `GET /api/scene.toml?id=N`: the scene as a scene TOML file.
+//!
+//! Every parameter is checked; a bad request gets a JSON error (400/404)
+//! and the server goes on. At most [`MAX_RUNS`] scene runs at a time, each
+//! given [`RUN_TIMEOUT_S`] seconds.
+
+// Request checks return the error response itself (axum's `Response`).
+#![allow(clippy::result_large_err)]
+
+use std::collections::HashMap;
+use std::io::Read;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::time::Duration;
+
+use anyhow::{Context, Result};
+use axum::extract::{Query, State};
+use axum::http::{header, StatusCode};
+use axum::response::{Html, IntoResponse, Response};
+use axum::routing::get;
+use axum::{Json, Router};
+use serde_json::{json, Value as Json_};
+
+use crate::engine::{simulate_chain, Model, Silent};
+use crate::output::trace::TraceWriter;
+use crate::sweep::axis::{Value, Values};
+use crate::sweep::Sweep;
+
+/// Most trace rows a scene reply carries.
+pub const MAX_TRACE_ROWS: f64 = 2000.0;
+/// Scene runs at the same time.
+pub const MAX_RUNS: usize = 2;
+/// Longest a scene run may take (s).
+pub const RUN_TIMEOUT_S: u64 = 20;
+
+const PAGE: &str = include_str!("page.html");
+
+/// One column: numbers (NaN where empty) or categories.
+enum Col {
+    Num(Vec<f64>),
+    Cat(Vec<u32>, Vec<String>),
+}
+
+/// A loaded table.
+struct Data {
+    name: String,
+    header: Vec<String>,
+    cols: Vec<Col>,
+    /// Row of each scene id (a full grid: row i is id i).
+    rows: usize,
+    /// The grid: per axis, its name and values (empty when not a grid).
+    axes: Vec<(String, Values)>,
+    dims: Vec<u64>,
+    /// The sweep that made the table, to run a scene again.
+    sweep: Option<Sweep>,
+    sweep_problem: String,
+    runs: Arc<tokio::sync::Semaphore>,
+}
+
+fn err(code: StatusCode, msg: impl Into<String>) -> Response {
+    (code, Json(json!({ "error": msg.into() }))).into_response()
+}
+
+/// The table as CSV text: a refined table filled to its grid, Parquet as
+/// the CSV's text.
+fn csv_source(path: &Path) -> Result<Box<dyn Read>> {
+    use crate::output::{fill, parquet_file};
+    if let Some(g) = fill::grid(path)? {
+        let mut bytes = Vec::new();
+        fill::fill(path, &g, &mut |row| {
+            bytes.extend_from_slice(row);
+            Ok(())
+        })?;
+        return Ok(Box::new(std::io::Cursor::new(bytes)));
+    }
+    if parquet_file::is_parquet(path) {
+        let (header, rows) = parquet_file::read_text(path)?;
+        let mut bytes = Vec::new();
+        for row in std::iter::once(&header).chain(&rows) {
+            for (k, f) in row.iter().enumerate() {
+                if k > 0 {
+                    bytes.push(b',');
+                }
+                crate::output::row::push_csv_field(&mut bytes, f);
+            }
+            bytes.push(b'\n');
+        }
+        return Ok(Box::new(std::io::Cursor::new(bytes)));
+    }
+    Ok(Box::new(std::fs::File::open(path).with_context(|| {
+        format!("cannot read {}", path.display())
+    })?))
+}
+
+fn load(path: &Path) -> Result<Data> {
+    let mut r = csv::Reader::from_reader(csv_source(path)?);
+    let header: Vec<String> = r.headers()?.iter().map(str::to_string).collect();
+    let n = header.len();
+    let mut text: Vec<Vec<String>> = vec![vec![]; n];
+    let mut nums: Vec<Vec<f64>> = vec![vec![]; n];
+    let mut numeric = vec![true; n];
+    let mut rows = 0;
+    for rec in r.records() {
+        let rec = rec.with_context(|| format!("{}: not a readable table", path.display()))?;
+        for (k, f) in rec.iter().enumerate().take(n) {
+            if numeric[k] {
+                match f.trim() {
+                    "" => nums[k].push(f64::NAN),
+                    t => match t.parse::<f64>() {
+                        Ok(x) => nums[k].push(x),
+                        Err(_) => {
+                            numeric[k] = false;
+                            // Keep the text of the rows so far.
+                        }
+                    },
+                }
+            }
+            text[k].push(f.to_string());
+        }
+        rows += 1;
+    }
+    if rows == 0 {
+        anyhow::bail!("{}: the table has no rows", path.display());
+    }
+    let cols = (0..n)
+        .map(|k| {
+            if numeric[k] {
+                Col::Num(std::mem::take(&mut nums[k]))
+            } else {
+                let mut labels: Vec<String> = vec![];
+                let mut index: HashMap<String, u32> = HashMap::new();
+                let codes = text[k]
+                    .iter()
+                    .map(|t| {
+                        *index.entry(t.clone()).or_insert_with(|| {
+                            labels.push(t.clone());
+                            labels.len() as u32 - 1
+                        })
+                    })
+                    .collect();
+                Col::Cat(codes, labels)
+            }
+        })
+        .collect();
+    // The grid, from the sidecar's sweep.
+    let sc: Option<Json_> = std::fs::read_to_string(crate::output::sidecar::path(path))
+        .ok()
+        .and_then(|t| serde_json::from_str(&t).ok());
+    let mut axes = vec![];
+    if let Some(sc) = &sc {
+        if sc["sweep"].get("layout").is_none() {
+            for a in sc["sweep"]["axes"].as_array().into_iter().flatten() {
+                if let (Some(name), Some(v)) = (a["name"].as_str(), Values::from_json(&a["values"]))
+                {
+                    axes.push((name.to_string(), v));
+                }
+            }
+        }
+    }
+    let dims: Vec<u64> = axes.iter().map(|(_, v)| v.len() as u64).collect();
+    if dims.iter().product::<u64>() != rows as u64 {
+        axes.clear();
+    }
+    // The sweep file, as named in the sidecar (from where it ran, or beside the table).
+    let (sweep, sweep_problem) = match sc.as_ref().and_then(|s| s["sweep_file"].as_str()) {
+        None => (
+            None,
+            "the table has no sidecar naming its sweep file".to_string(),
+        ),
+        Some(f) => {
+            let near = path.parent().unwrap_or(Path::new(".")).join(f);
+            let found = [PathBuf::from(f), near].into_iter().find(|p| p.is_file());
+            match found.map(|p| Sweep::load(&p)) {
+                Some(Ok(s)) if s.total == dims.iter().product::<u64>().max(rows as u64) || axes.is_empty() => {
+                    (Some(s), String::new())
+                }
+                Some(Ok(_)) => (None, format!("the sweep file {f} no longer matches the table")),
+                Some(Err(e)) => (None, format!("the sweep file {f}: {e}")),
+                None => (
+                    None,
+                    format!("the sweep file {f} named in the sidecar is not found (run explore from where the sweep ran)"),
+                ),
+            }
+        }
+    };
+    Ok(Data {
+        name: path
+            .file_name()
+            .map_or(String::new(), |n| n.to_string_lossy().into_owned()),
+        header,
+        cols,
+        rows,
+        axes,
+        dims,
+        sweep,
+        sweep_problem,
+        runs: Arc::new(tokio::sync::Semaphore::new(MAX_RUNS)),
+    })
+}
+
+impl Data {
+    fn col(&self, name: &str) -> Option<usize> {
+        self.header.iter().position(|h| h == name)
+    }
+
+    fn cell(&self, k: usize, row: usize) -> String {
+        match &self.cols[k] {
+            Col::Num(v) => {
+                let mut s = String::new();
+                crate::output::row::num_into(v[row], &mut s);
+                s
+            }
+            Col::Cat(c, l) => l[c[row] as usize].clone(),
+        }
+    }
+
+    fn steps(&self) -> Vec<u64> {
+        let mut steps = vec![1u64; self.dims.len()];
+        for k in (0..self.dims.len().saturating_sub(1)).rev() {
+            steps[k] = steps[k + 1] * self.dims[k + 1];
+        }
+        steps
+    }
+}
+
+async fn meta(State(d): State<Arc<Data>>) -> Response {
+    let columns: Vec<Json_> = d
+        .header
+        .iter()
+        .zip(&d.cols)
+        .map(|(h, c)| match c {
+            Col::Num(_) => json!({"name": h, "kind": "number"}),
+            Col::Cat(_, l) => json!({"name": h, "kind": "category", "labels": l}),
+        })
+        .collect();
+    let axes: Vec<Json_> = d
+        .axes
+        .iter()
+        .map(|(name, v)| {
+            let vals: Vec<Json_> = (0..v.len())
+                .map(|i| match v.get(i) {
+                    Value::Num(x) => json!(x),
+                    Value::Text(t) => json!(t),
+                })
+                .collect();
+            json!({"name": name, "values": vals, "log": matches!(v, Values::Logspace { .. })})
+        })
+        .collect();
+    Json(json!({
+        "file": d.name, "rows": d.rows, "columns": columns, "axes": axes, "steps": d.steps(),
+        "scenes": d.sweep.is_some(), "scenes_problem": d.sweep_problem,
+        "max_trace_rows": MAX_TRACE_ROWS,
+    }))
+    .into_response()
+}
+
+async fn map(State(d): State<Arc<Data>>, Query(q): Query<HashMap<String, String>>) -> Response {
+    if d.axes.len() < 2 {
+        return err(
+            StatusCode::BAD_REQUEST,
+            "the table is not a grid of 2 or more axes (its sidecar names its axes)",
+        );
+    }
+    let axis = |key: &str| -> Result<usize, Response> {
+        let name = q
+            .get(key)
+            .ok_or_else(|| err(StatusCode::BAD_REQUEST, format!("`{key}` is required")))?;
+        d.axes.iter().position(|(n, _)| n == name).ok_or_else(|| {
+            err(
+                StatusCode::BAD_REQUEST,
+                format!("`{key}` = {name:?}: not an axis"),
+            )
+        })
+    };
+    let (ax, ay) = match (axis("x"), axis("y")) {
+        (Ok(a), Ok(b)) if a != b => (a, b),
+        (Err(e), _) | (_, Err(e)) => return e,
+        _ => {
+            return err(
+                StatusCode::BAD_REQUEST,
+                "`x` and `y` must be different axes",
+            )
+        }
+    };
+    let Some(z) = q.get("z").and_then(|z| d.col(z)) else {
+        return err(StatusCode::BAD_REQUEST, "`z`: not a column of the table");
+    };
+    let mut at = vec![0u64; d.axes.len()];
+    if let Some(s) = q.get("at") {
+        let parts: Vec<&str> = s.split(',').collect();
+        if parts.len() != d.axes.len() {
+            return err(
+                StatusCode::BAD_REQUEST,
+                format!("`at`: {} indices, one per axis", d.axes.len()),
+            );
+        }
+        for (k, p) in parts.iter().enumerate() {
+            match p.parse::<u64>() {
+                Ok(i) if i < d.dims[k] => at[k] = i,
+                _ => {
+                    return err(
+                        StatusCode::BAD_REQUEST,
+                        format!(
+                            "`at`: index {p:?} of axis {k} outside 0 ..= {}",
+                            d.dims[k] - 1
+                        ),
+                    )
+                }
+            }
+        }
+    }
+    let steps = d.steps();
+    let (nx, ny) = (d.dims[ax] as usize, d.dims[ay] as usize);
+    let base: u64 = (0..d.axes.len())
+        .filter(|&k| k != ax && k != ay)
+        .map(|k| at[k] * steps[k])
+        .sum();
+    let mut vals: Vec<Json_> = Vec::with_capacity(nx * ny);
+    for iy in 0..ny {
+        for ix in 0..nx {
+            let id = (base + ix as u64 * steps[ax] + iy as u64 * steps[ay]) as usize;
+            vals.push(match &d.cols[z] {
+                Col::Num(v) if v[id].is_finite() => json!(v[id]),
+                Col::Num(_) => Json_::Null,
+                Col::Cat(c, _) => json!(c[id]),
+            });
+        }
+    }
+    Json(json!({"nx": nx, "ny": ny, "base": base, "sx": steps[ax], "sy": steps[ay], "z": vals}))
+        .into_response()
+}
+
+fn id_param(d: &Data, q: &HashMap<String, String>) -> Result<usize, Response> {
+    let s = q
+        .get("id")
+        .ok_or_else(|| err(StatusCode::BAD_REQUEST, "`id` is required"))?;
+    match s.parse::<u64>() {
+        Ok(id) if (id as usize) < d.rows => Ok(id as usize),
+        Ok(id) => Err(err(
+            StatusCode::NOT_FOUND,
+            format!("no scene {id}: ids are 0 ..= {}", d.rows - 1),
+        )),
+        Err(_) => Err(err(
+            StatusCode::BAD_REQUEST,
+            format!("`id` = {s:?}: not a whole number"),
+        )),
+    }
+}
+
+async fn row(State(d): State<Arc<Data>>, Query(q): Query<HashMap<String, String>>) -> Response {
+    let id = match id_param(&d, &q) {
+        Ok(i) => i,
+        Err(e) => return e,
+    };
+    // [name, text] pairs, in the table's column order.
+    let fields: Vec<Json_> = d
+        .header
+        .iter()
+        .enumerate()
+        .map(|(k, h)| json!([h, d.cell(k, id)]))
+        .collect();
+    Json(json!({"id": id, "row": fields})).into_response()
+}
+
+/// Run scene `id` of the sweep: outcome, trace text, the other models.
+fn run_scene(sweep: &Sweep, id: u64) -> Result<Json_> {
+    let job = sweep.job(id, &Default::default())?;
+    let crate::backend::Job::Run { chain, solver } = job else {
+        anyhow::bail!("scene {id} is not a valid scene (status invalid)");
+    };
+    let t_end = simulate_chain(&chain, &solver, &mut Silent).t_end;
+    let default_every = if chain.is_pendulum() {
+        std::f64::consts::TAU / chain.omega() / 400.0
+    } else {
+        chain.time_scale().map_or(1e-6, |tc| tc / 20.0)
+    };
+    let every = default_every.max(t_end / MAX_TRACE_ROWS);
+    let mut bytes = Vec::new();
+    let mut tw = TraceWriter::new(&mut bytes, &chain, every)?;
+    let o = simulate_chain(&chain, &solver, &mut tw);
+    tw.finish()?;
+    let shape = crate::output::row::Shape {
+        width: chain.n_balls,
+        pendulum: chain.is_pendulum(),
+    };
+    let outcome_of = |o: &crate::engine::Outcome| -> Json_ {
+        let header = crate::output::row::header(&[], shape);
+        let fields = crate::output::row::fields(id, &[], o, shape);
+        header
+            .into_iter()
+            .zip(fields)
+            .skip(1)
+            .map(|(h, f)| json!([h, f]))
+            .collect::<Vec<_>>()
+            .into()
+    };
+    let mut models = serde_json::Map::new();
+    for m in [Model::HardSphere, Model::Closure] {
+        let mut s = solver.clone();
+        s.model = m;
+        models.insert(
+            m.name().to_string(),
+            match m.unsupported(&chain) {
+                Some(why) => json!({"unsupported": why}),
+                None => outcome_of(&simulate_chain(&chain, &s, &mut Silent)),
+            },
+        );
+    }
+    Ok(json!({
+        "id": id,
+        "outcome": outcome_of(&o),
+        "trace_csv": String::from_utf8_lossy(&bytes),
+        "trace_every_s": every,
+        "trace_capped": every > default_every,
+        "pendulum": chain.is_pendulum(),
+        "length_m": chain.length,
+        "models": models,
+    }))
+}
+
+async fn scene(State(d): State<Arc<Data>>, Query(q): Query<HashMap<String, String>>) -> Response {
+    let id = match id_param(&d, &q) {
+        Ok(i) => i as u64,
+        Err(e) => return e,
+    };
+    if d.sweep.is_none() {
+        return err(
+            StatusCode::NOT_FOUND,
+            format!("scenes cannot be run: {}", d.sweep_problem),
+        );
+    }
+    let Ok(permit) = d.runs.clone().try_acquire_owned() else {
+        return err(
+            StatusCode::SERVICE_UNAVAILABLE,
+            format!("{MAX_RUNS} scenes are already running; try again in a moment"),
+        );
+    };
+    let d2 = d.clone();
+    let task = tokio::task::spawn_blocking(move || {
+        let r = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+            run_scene(d2.sweep.as_ref().expect("checked above"), id)
+        }));
+        drop(permit);
+        r
+    });
+    match tokio::time::timeout(Duration::from_secs(RUN_TIMEOUT_S), task).await {
+        Ok(Ok(Ok(Ok(v)))) => Json(v).into_response(),
+        Ok(Ok(Ok(Err(e)))) => err(StatusCode::BAD_REQUEST, format!("{e:#}")),
+        Ok(_) => err(
+            StatusCode::INTERNAL_SERVER_ERROR,
+            format!("scene {id} failed"),
+        ),
+        Err(_) => err(
+            StatusCode::SERVICE_UNAVAILABLE,
+            format!("scene {id} takes longer than {RUN_TIMEOUT_S} s"),
+        ),
+    }
+}
+
+async fn scene_toml(
+    State(d): State<Arc<Data>>,
+    Query(q): Query<HashMap<String, String>>,
+) -> Response {
+    let id = match id_param(&d, &q) {
+        Ok(i) => i as u64,
+        Err(e) => return e,
+    };
+    let Some(sweep) = &d.sweep else {
+        return err(
+            StatusCode::NOT_FOUND,
+            format!("scenes cannot be exported: {}", d.sweep_problem),
+        );
+    };
+    match sweep
+        .scene_spec(id)
+        .and_then(|s| toml::to_string(&s).map_err(|e| anyhow::anyhow!(e)))
+    {
+        Ok(text) => (
+            [
+                (header::CONTENT_TYPE, "application/toml".to_string()),
+                (
+                    header::CONTENT_DISPOSITION,
+                    format!("attachment; filename=\"scene_{id}.toml\""),
+                ),
+            ],
+            format!("# scene {id} of {}\n{text}", d.name),
+        )
+            .into_response(),
+        Err(e) => err(StatusCode::BAD_REQUEST, format!("{e:#}")),
+    }
+}
+
+async fn page() -> Html<&'static str> {
+    Html(PAGE)
+}
+
+async fn not_found() -> Response {
+    err(
+        StatusCode::NOT_FOUND,
+        "no such page: the explorer serves / and /api/{meta,map,row,scene,scene.toml}",
+    )
+}
+
+/// Serve `table` on `host:port` until the process ends; `ready` gets the URL.
+pub fn serve(table: &Path, host: &str, port: u16, ready: &dyn Fn(&str)) -> Result<()> {
+    let data = Arc::new(load(table)?);
+    let app = Router::new()
+        .route("/", get(page))
+        .route("/api/meta", get(meta))
+        .route("/api/map", get(map))
+        .route("/api/row", get(row))
+        .route("/api/scene", get(scene))
+        .route("/api/scene.toml", get(scene_toml))
+        .fallback(not_found)
+        .with_state(data);
+    let rt = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()?;
+    rt.block_on(async {
+        let listener = tokio::net::TcpListener::bind((host, port))
+            .await
+            .with_context(|| format!("cannot listen on {host}:{port}"))?;
+        let addr = listener.local_addr()?;
+        ready(&format!("http://{addr}/"));
+        axum::serve(listener, app).await?;
+        Ok(())
+    })
+}

@@ -1,0 +1,164 @@
+"""`cradle explore` end to end in a real browser: Debian's chromium driven by
+Playwright for Python (executable_path: no browser download).
+
+    pip install -r python/requirements-test.txt playwright
+    CRADLE_BIN=target/debug/cradle pytest tests/browser
+
+Needs /usr/bin/chromium (apt-get install chromium). Writes the page's
+screenshot to results/explorer.png (EXPLORER_SCREENSHOT overrides)."""
+
+import json
+import os
+import shutil
+import socket
+import subprocess
+import time
+import urllib.error
+import urllib.request
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+CHROMIUM = os.environ.get("CHROMIUM", "/usr/bin/chromium")
+ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+        "--disable-background-networking", "--disable-component-update", "--disable-sync"]
+
+
+def cradle_bin():
+    env = os.environ.get("CRADLE_BIN")
+    if env:
+        return str(Path(env).resolve())
+    for p in ("target/release/cradle", "target/debug/cradle"):
+        if (ROOT / p).exists():
+            return str(ROOT / p)
+    pytest.skip("no cradle binary: build it (cargo build) or set CRADLE_BIN")
+
+
+def free_port():
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+@pytest.fixture(scope="module")
+def server(tmp_path_factory):
+    if not Path(CHROMIUM).exists():
+        pytest.skip(f"no browser at {CHROMIUM}: apt-get install chromium")
+    d = tmp_path_factory.mktemp("explore")
+    spec = d / "map.toml"
+    spec.write_text(
+        "[scene]\nballs = 5\nvelocity = [1.0, 0, 0, 0, 0]\n"
+        "[[axis]]\nparam = \"mass[2]\"\nlogspace = [0.0064, 0.64, 60]\n"
+        "[[axis]]\nparam = \"gap\"\nlinspace = [0.0, 2e-5, 40]\n"
+    )
+    table = d / "map.csv"
+    subprocess.run([cradle_bin(), "sweep", spec, "--out", table, "--backend", "cpu"], check=True,
+                   capture_output=True, cwd=d)
+    port = free_port()
+    p = subprocess.Popen([cradle_bin(), "explore", "map.csv", "--port", str(port)], cwd=d,
+                         stderr=subprocess.PIPE, text=True)
+    url = f"http://127.0.0.1:{port}/"
+    for _ in range(200):
+        try:
+            urllib.request.urlopen(url + "api/meta", timeout=1)
+            break
+        except (urllib.error.URLError, ConnectionError):
+            time.sleep(0.05)
+    yield url, table
+    p.terminate()
+    p.wait(timeout=10)
+
+
+def get(url):
+    try:
+        with urllib.request.urlopen(url, timeout=30) as r:
+            return r.status, json.loads(r.read())
+    except urllib.error.HTTPError as e:
+        return e.code, json.loads(e.read())
+
+
+def test_bad_requests_get_json_errors_and_the_server_keeps_serving(server):
+    url, _ = server
+    for path, code, needle in [
+        ("api/scene?id=abc", 400, "not a whole number"),
+        ("api/scene?id=-1", 400, "not a whole number"),
+        ("api/scene?id=999999", 404, "no scene 999999"),
+        ("api/scene", 400, "`id` is required"),
+        ("api/row?id=1e3", 400, "not a whole number"),
+        ("api/map?x=gap&y=nope&z=ejected", 400, "not an axis"),
+        ("api/map?x=gap&y=mass[2]&z=ejected&at=0", 400, "one per axis"),
+        ("../../etc/passwd", 404, "no such page"),
+        ("api/../../Cargo.toml", 404, "no such page"),
+    ]:
+        status, body = get(url + path)
+        assert status == code and needle in body["error"], (path, status, body)
+    status, body = get(url + "api/row?id=3")
+    assert status == 200 and body["row"][0] == ["id", "3"]
+
+
+def test_the_page_draws_the_map_and_a_click_opens_that_scene(server):
+    from playwright.sync_api import sync_playwright
+
+    url, table = server
+    rows = table.read_text().splitlines()
+    header = rows[0].split(",")
+    with sync_playwright() as pw:
+        browser = pw.chromium.launch(executable_path=CHROMIUM, args=ARGS)
+        page = browser.new_page(viewport={"width": 1400, "height": 900})
+        errors = []
+        page.on("console", lambda m: errors.append(m.text) if m.type == "error" else None)
+        page.on("pageerror", lambda e: errors.append(str(e)))
+        t0 = time.time()
+        page.goto(url)
+        page.wait_for_selector("body[data-ready='1']", timeout=20_000)
+        first_paint = time.time() - t0
+        cv = page.get_by_test_id("phase-map")
+        # x: the first axis (mass[2], 60 values), y: the second (gap, 40).
+        assert cv.get_attribute("data-nx") == "60" and cv.get_attribute("data-ny") == "40"
+        # The raster is drawn: more than one colour on the canvas.
+        colours = page.evaluate(
+            """() => { const c = document.querySelector('[data-testid=phase-map]');
+                       const d = c.getContext('2d').getImageData(0, 0, c.width, c.height).data;
+                       const s = new Set(); for (let i = 0; i < d.length; i += 4 * 97) s.add(d[i] + ',' + d[i+1] + ',' + d[i+2]);
+                       return s.size; }"""
+        )
+        assert colours >= 2
+        # Click the cell of mass index 45 (x), gap index 10 (y, drawn upwards).
+        box = cv.bounding_box()
+        ix, iy = 45, 10
+        x = box["x"] + (ix + 0.5) * box["width"] / 60
+        y = box["y"] + (40 - 1 - iy + 0.5) * box["height"] / 40
+        t1 = time.time()
+        page.mouse.click(x, y)
+        want = ix * 40 + iy
+        details = page.get_by_test_id("scene-details")
+        assert details.get_attribute("data-scene-id") == str(want)
+        page.get_by_test_id("trace-plot").wait_for(timeout=20_000)
+        click_to_trace = time.time() - t1
+        row = rows[1 + want].split(",")
+        text = details.inner_text()
+        assert f"Scene {want}" in text
+        for name in ("mass[2]", "gap"):
+            assert row[header.index(name)] in text
+        # The trace is drawn (non-blank canvas), the comparison models are there.
+        drawn = page.evaluate(
+            """() => { const c = document.querySelector('[data-testid=trace-plot]');
+                       const d = c.getContext('2d').getImageData(0, 0, c.width, c.height).data;
+                       let n = 0; for (let i = 3; i < d.length; i += 4) n += d[i] > 0; return n; }"""
+        )
+        assert drawn > 500
+        assert "hard-sphere" in text and "closure" in text
+        shot = os.environ.get("EXPLORER_SCREENSHOT", str(ROOT / "results" / "explorer.png"))
+        page.screenshot(path=shot)
+        assert not errors, errors
+        # An invalid request from the page's side (its 404 is logged by the
+        # browser): the page shows the error, the server goes on.
+        status, body = get(url + "api/scene?id=nope")
+        assert status == 400
+        page.evaluate("openScene(123456)")
+        page.wait_for_function("document.querySelector('[data-testid=scene-details]').innerText.includes('no scene')")
+        page.mouse.click(x, y)
+        page.get_by_test_id("trace-plot").wait_for(timeout=20_000)
+        browser.close()
+    print(f"first paint {first_paint:.2f} s, click to trace {click_to_trace:.2f} s")
