@@ -25,17 +25,11 @@ import tempfile
 import time
 
 HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, HERE)
+from machine import cpu_model, git_rev  # noqa: E402
 ROOT = os.path.dirname(HERE)
 
 
-def cpu_model():
-    try:
-        for line in open("/proc/cpuinfo"):
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or platform.machine()
 
 
 def best(f, reps):
@@ -100,8 +94,7 @@ def main():
     except ImportError:
         first = py100 = None
 
-    rev = subprocess.run(["git", "-C", ROOT, "rev-parse", "--short", "HEAD"],
-                         stdout=subprocess.PIPE, text=True).stdout.strip()
+    rev = git_rev()
     import pyarrow
     lines = [
         f"Machine: {cpu_model()}, {os.cpu_count()} cores; cradle at {rev}; CPU backend; "

@@ -18,13 +18,14 @@ every 2,000 points, up to 5% of the scenes).
 """
 import argparse
 import os
-import platform
 import subprocess
 import sys
 import tempfile
 import time
 
 HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, HERE)
+from machine import cpu_model, git_rev  # noqa: E402
 ROOT = os.path.dirname(HERE)
 M = 0.06422266231947886
 
@@ -58,14 +59,6 @@ param = "{p2}"
     return text
 
 
-def cpu_model():
-    try:
-        for line in open("/proc/cpuinfo"):
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or platform.machine()
 
 
 def column(path, name):
@@ -134,8 +127,7 @@ def main():
         print(rows[-1], flush=True)
         for f in os.listdir(tmp):
             os.remove(os.path.join(tmp, f))
-    rev = subprocess.run(["git", "-C", ROOT, "rev-parse", "--short", "HEAD"], stdout=subprocess.PIPE,
-                         text=True).stdout.strip()
+    rev = git_rev()
     total = n * n
     lines = [
         f"Machine: {cpu_model()}, {os.cpu_count()} cores; cradle at {rev}; CPU backend, default solver.",

@@ -292,6 +292,21 @@ impl Sweep {
             };
             let param = Param::parse(&name)
                 .map_err(|allowed| invalid(line, "axis.param", format!("{name:?}"), allowed))?;
+            if let Some((l0, a0)) = axes
+                .iter()
+                .find(|(_, b): &&(Option<usize>, Axis)| b.param.overlaps(&param))
+            {
+                return Err(invalid(
+                    line,
+                    "axis.param",
+                    format!("{name:?}"),
+                    format!(
+                        "sets what the axis {:?}{} already sets: each scene quantity may have one axis",
+                        a0.name,
+                        l0.map_or(String::new(), |l| format!(" (line {l})"))
+                    ),
+                ));
+            }
             if let Some((d, num, seed)) = sample {
                 let bad = |allowed: &str| {
                     invalid(
@@ -348,21 +363,6 @@ impl Sweep {
                     log,
                     integer,
                 });
-                if let Some((l0, a0)) = axes
-                    .iter()
-                    .find(|(_, b): &&(Option<usize>, Axis)| b.param.overlaps(&param))
-                {
-                    return Err(invalid(
-                        line,
-                        "axis.param",
-                        format!("{name:?}"),
-                        format!(
-                            "sets what the axis {:?}{} already sets: each scene quantity may have one axis",
-                            a0.name,
-                            l0.map_or(String::new(), |l| format!(" (line {l})"))
-                        ),
-                    ));
-                }
                 axes.push((
                     line,
                     Axis {
@@ -481,21 +481,6 @@ impl Sweep {
                         }
                     }
                 }
-            }
-            if let Some((l0, a0)) = axes
-                .iter()
-                .find(|(_, b): &&(Option<usize>, Axis)| b.param.overlaps(&param))
-            {
-                return Err(invalid(
-                    line,
-                    "axis.param",
-                    format!("{name:?}"),
-                    format!(
-                        "sets what the axis {:?}{} already sets: each scene quantity may have one axis",
-                        a0.name,
-                        l0.map_or(String::new(), |l| format!(" (line {l})"))
-                    ),
-                ));
             }
             axes.push((
                 line,

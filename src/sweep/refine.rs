@@ -98,6 +98,16 @@ fn lattice(n: u64, stride: u64) -> Vec<u64> {
     v
 }
 
+/// The intervals between neighbouring `points` of one axis (one point:
+/// the degenerate interval of an axis that takes no part).
+fn intervals(points: &[u64]) -> Vec<(u64, u64)> {
+    if points.len() == 1 {
+        vec![(points[0], points[0])]
+    } else {
+        points.windows(2).map(|w| (w[0], w[1])).collect()
+    }
+}
+
 /// Every combination of one choice per axis (first axis slowest).
 fn product<T: Clone>(choices: &[Vec<T>]) -> Vec<Vec<T>> {
     let mut out: Vec<Vec<T>> = vec![vec![]];
@@ -167,16 +177,7 @@ impl Refiner {
         let mut lat: Vec<Vec<u64>> = self.dims.iter().map(|&n| lattice(n, self.stride)).collect();
         let (first, last) = self.range0;
         lat[0].retain(|&i| (first..=last).contains(&i));
-        let intervals: Vec<Vec<(u64, u64)>> = lat
-            .iter()
-            .map(|l| {
-                if l.len() == 1 {
-                    vec![(l[0], l[0])]
-                } else {
-                    l.windows(2).map(|w| (w[0], w[1])).collect()
-                }
-            })
-            .collect();
+        let intervals: Vec<Vec<(u64, u64)>> = lat.iter().map(|l| intervals(l)).collect();
         self.cells = product(&intervals);
         let ids: Vec<u64> = product(&lat).iter().map(|p| self.id(p)).collect();
         self.computed.extend(&ids);
@@ -235,16 +236,7 @@ impl Refiner {
                     new_ids.insert(id);
                 }
             }
-            let subs: Vec<Vec<(u64, u64)>> = splits
-                .iter()
-                .map(|s| {
-                    if s.len() == 1 {
-                        vec![(s[0], s[0])]
-                    } else {
-                        s.windows(2).map(|w| (w[0], w[1])).collect()
-                    }
-                })
-                .collect();
+            let subs: Vec<Vec<(u64, u64)>> = splits.iter().map(|s| intervals(s)).collect();
             // Sub-cells with room for another level (an interval ≥ 2 steps).
             next_cells.extend(
                 product(&subs)
