@@ -8,6 +8,8 @@
 //!   the file's name.
 //! - `GET /api/map?x=AXIS&y=AXIS&z=COLUMN&at=I,J,…`: the z values of the
 //!   x × y slice of the grid at the given indices of the other axes.
+//! - `GET /api/points?x=COLUMN&y=COLUMN&z=COLUMN`: x, y, z and id of every
+//!   row, for a table that is not a grid (a point list, a sampling design).
 //! - `GET /api/row?id=N`: one row as text.
 //! - `GET /api/scene?id=N`: that scene run again by the CPU engine from the
 //!   sweep named in the sidecar: its outcome, its trace (at most
@@ -345,6 +347,40 @@ async fn map(State(d): State<Arc<Data>>, Query(q): Query<HashMap<String, String>
         .into_response()
 }
 
+/// A table that is not a grid (a point list, a sampling design): x, y and
+/// z of every row, for a scatter plot.
+async fn points(State(d): State<Arc<Data>>, Query(q): Query<HashMap<String, String>>) -> Response {
+    let col = |key: &str| -> Result<usize, Response> {
+        let name = q
+            .get(key)
+            .ok_or_else(|| err(StatusCode::BAD_REQUEST, format!("`{key}` is required")))?;
+        d.col(name).ok_or_else(|| {
+            err(
+                StatusCode::BAD_REQUEST,
+                format!("`{key}` = {name:?}: not a column"),
+            )
+        })
+    };
+    let (x, y, z) = match (col("x"), col("y"), col("z")) {
+        (Ok(x), Ok(y), Ok(z)) => (x, y, z),
+        (Err(e), _, _) | (_, Err(e), _) | (_, _, Err(e)) => return e,
+    };
+    let values = |k: usize| -> Vec<Json_> {
+        (0..d.rows)
+            .map(|r| match &d.cols[k] {
+                Col::Num(v) if v[r].is_finite() => json!(v[r]),
+                Col::Num(_) => Json_::Null,
+                Col::Cat(c, _) => json!(c[r]),
+            })
+            .collect()
+    };
+    let ids: Vec<Json_> = match d.col("id") {
+        Some(k) => values(k),
+        None => (0..d.rows).map(|r| json!(r)).collect(),
+    };
+    Json(json!({"x": values(x), "y": values(y), "z": values(z), "id": ids})).into_response()
+}
+
 fn id_param(d: &Data, q: &HashMap<String, String>) -> Result<usize, Response> {
     let s = q
         .get("id")
@@ -512,7 +548,7 @@ async fn page() -> Html<&'static str> {
 async fn not_found() -> Response {
     err(
         StatusCode::NOT_FOUND,
-        "no such page: the explorer serves / and /api/{meta,map,row,scene,scene.toml}",
+        "no such page: the explorer serves / and /api/{meta,map,points,row,scene,scene.toml}",
     )
 }
 
@@ -523,6 +559,7 @@ pub fn serve(table: &Path, host: &str, port: u16, ready: &dyn Fn(&str)) -> Resul
         .route("/", get(page))
         .route("/api/meta", get(meta))
         .route("/api/map", get(map))
+        .route("/api/points", get(points))
         .route("/api/row", get(row))
         .route("/api/scene", get(scene))
         .route("/api/scene.toml", get(scene_toml))

@@ -162,3 +162,52 @@ def test_the_page_draws_the_map_and_a_click_opens_that_scene(server):
         page.get_by_test_id("trace-plot").wait_for(timeout=20_000)
         browser.close()
     print(f"first paint {first_paint:.2f} s, click to trace {click_to_trace:.2f} s")
+
+
+def test_a_sampled_table_is_drawn_as_points_and_a_click_opens_the_nearest(tmp_path):
+    from playwright.sync_api import sync_playwright
+
+    if not Path(CHROMIUM).exists():
+        pytest.skip(f"no browser at {CHROMIUM}: apt-get install chromium")
+    spec = tmp_path / "lhs.toml"
+    spec.write_text(
+        "[scene]\nballs = 5\nvelocity = [1.0, 0, 0, 0, 0]\n"
+        "[sample]\ndesign = \"lhs\"\npoints = 300\nseed = 2\n"
+        "[[axis]]\nparam = \"mass[2]\"\nrange = [0.0064, 0.64]\nscale = \"log\"\n"
+        "[[axis]]\nparam = \"gap\"\nrange = [0.0, 2e-5]\n"
+    )
+    subprocess.run([cradle_bin(), "sweep", spec, "--out", tmp_path / "lhs.csv", "--backend", "cpu"],
+                   check=True, capture_output=True, cwd=tmp_path)
+    port = free_port()
+    p = subprocess.Popen([cradle_bin(), "explore", "lhs.csv", "--port", str(port)], cwd=tmp_path,
+                         stderr=subprocess.PIPE, text=True)
+    url = f"http://127.0.0.1:{port}/"
+    try:
+        for _ in range(200):
+            try:
+                urllib.request.urlopen(url + "api/meta", timeout=1)
+                break
+            except (urllib.error.URLError, ConnectionError):
+                time.sleep(0.05)
+        with sync_playwright() as pw:
+            browser = pw.chromium.launch(executable_path=CHROMIUM, args=ARGS)
+            page = browser.new_page(viewport={"width": 1400, "height": 900})
+            errors = []
+            page.on("pageerror", lambda e: errors.append(str(e)))
+            page.goto(url)
+            page.wait_for_selector("body[data-ready='1']", timeout=20_000)
+            cv = page.get_by_test_id("phase-map")
+            assert cv.get_attribute("data-points") == "300"
+            pts = page.evaluate("pts")
+            px, py, _ = pts[17]
+            box = cv.bounding_box()
+            page.mouse.click(box["x"] + px * box["width"] / 600, box["y"] + py * box["height"] / 600)
+            want = min(pts, key=lambda q: (q[0] - px) ** 2 + (q[1] - py) ** 2)[2]
+            details = page.get_by_test_id("scene-details")
+            assert details.get_attribute("data-scene-id") == str(int(want))
+            page.get_by_test_id("trace-plot").wait_for(timeout=20_000)
+            browser.close()
+        assert not errors, errors
+    finally:
+        p.terminate()
+        p.wait(timeout=10)
