@@ -21,24 +21,16 @@ import argparse
 import csv
 import json
 import os
-import platform
 import subprocess
 import sys
 import tempfile
 import time
 
 HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, HERE)
+from machine import cpu_model, git_rev  # noqa: E402
 ROOT = os.path.dirname(HERE)
 
-
-def cpu_model():
-    try:
-        for line in open("/proc/cpuinfo"):
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or platform.machine()
 
 
 def sweep(cradle, spec, out, args, reps):
@@ -88,8 +80,7 @@ def main():
         subprocess.run([sys.executable, os.path.join(HERE, "grid.py"), "1000", "1000"], stdout=f, check=True)
     stress = os.path.join(ROOT, "examples", "stress.toml")
     cores = os.cpu_count()
-    rev = subprocess.run(["git", "-C", ROOT, "rev-parse", "--short", "HEAD"],
-                         stdout=subprocess.PIPE, text=True).stdout.strip()
+    rev = git_rev()
 
     gpu_args = []
     if a.gpu != "no":

@@ -179,9 +179,7 @@ impl RunConfig {
                     Some(d) => {
                         return Err(flag("--trace-dt", &d.to_string(), "a time > 0 (s)").into())
                     }
-                    // A pendulum: 400 rows per swing; a free line: 20 per contact.
-                    None if chain.is_pendulum() => std::f64::consts::TAU / chain.omega() / 400.0,
-                    None => chain.time_scale().map_or(1e-6, |tc| tc / 20.0),
+                    None => crate::output::trace::default_every(&chain),
                 };
                 let inputs: Vec<PathBuf> = Path::new(name)
                     .exists()

@@ -25,7 +25,6 @@
 #![allow(clippy::result_large_err)]
 
 use std::collections::HashMap;
-use std::io::Read;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::Duration;
@@ -78,39 +77,9 @@ fn err(code: StatusCode, msg: impl Into<String>) -> Response {
     (code, Json(json!({ "error": msg.into() }))).into_response()
 }
 
-/// The table as CSV text: a refined table filled to its grid, Parquet as
-/// the CSV's text.
-fn csv_source(path: &Path) -> Result<Box<dyn Read>> {
-    use crate::output::{fill, parquet_file};
-    if let Some(g) = fill::grid(path)? {
-        let mut bytes = Vec::new();
-        fill::fill(path, &g, &mut |row| {
-            bytes.extend_from_slice(row);
-            Ok(())
-        })?;
-        return Ok(Box::new(std::io::Cursor::new(bytes)));
-    }
-    if parquet_file::is_parquet(path) {
-        let (header, rows) = parquet_file::read_text(path)?;
-        let mut bytes = Vec::new();
-        for row in std::iter::once(&header).chain(&rows) {
-            for (k, f) in row.iter().enumerate() {
-                if k > 0 {
-                    bytes.push(b',');
-                }
-                crate::output::row::push_csv_field(&mut bytes, f);
-            }
-            bytes.push(b'\n');
-        }
-        return Ok(Box::new(std::io::Cursor::new(bytes)));
-    }
-    Ok(Box::new(std::fs::File::open(path).with_context(|| {
-        format!("cannot read {}", path.display())
-    })?))
-}
-
 fn load(path: &Path) -> Result<Data> {
-    let mut r = csv::Reader::from_reader(csv_source(path)?);
+    // A refined table filled to its grid, Parquet as the CSV's text.
+    let mut r = csv::Reader::from_reader(crate::output::fill::full_csv(path)?);
     let header: Vec<String> = r.headers()?.iter().map(str::to_string).collect();
     let n = header.len();
     let mut text: Vec<Vec<String>> = vec![vec![]; n];
@@ -420,11 +389,7 @@ fn run_scene(sweep: &Sweep, id: u64) -> Result<Json_> {
         anyhow::bail!("scene {id} is not a valid scene (status invalid)");
     };
     let t_end = simulate_chain(&chain, &solver, &mut Silent).t_end;
-    let default_every = if chain.is_pendulum() {
-        std::f64::consts::TAU / chain.omega() / 400.0
-    } else {
-        chain.time_scale().map_or(1e-6, |tc| tc / 20.0)
-    };
+    let default_every = crate::output::trace::default_every(&chain);
     let every = default_every.max(t_end / MAX_TRACE_ROWS);
     let mut bytes = Vec::new();
     let mut tw = TraceWriter::new(&mut bytes, &chain, every)?;

@@ -6,7 +6,7 @@
 //! so they equal a full sweep's.
 
 use std::collections::HashMap;
-use std::io::{BufRead, BufReader, Write};
+use std::io::{BufRead, BufReader, Read, Write};
 use std::path::Path;
 
 use anyhow::{Context, Result};
@@ -53,29 +53,50 @@ pub fn grid(table: &Path) -> Result<Option<Grid>> {
     Ok(Some(Grid { dims, axes }))
 }
 
+/// Any table as CSV text: a Parquet table as the CSV it stands for (built
+/// in memory), a CSV as it is.
+pub fn csv_of(table: &Path) -> Result<Box<dyn Read>> {
+    if !super::parquet_file::is_parquet(table) {
+        return Ok(Box::new(
+            std::fs::File::open(table)
+                .with_context(|| format!("cannot read {}", table.display()))?,
+        ));
+    }
+    let (header, rows) = super::parquet_file::read_text(table)?;
+    let mut bytes = Vec::new();
+    for row in std::iter::once(&header).chain(&rows) {
+        for (k, f) in row.iter().enumerate() {
+            if k > 0 {
+                bytes.push(b',');
+            }
+            super::row::push_csv_field(&mut bytes, f);
+        }
+        bytes.push(b'\n');
+    }
+    Ok(Box::new(std::io::Cursor::new(bytes)))
+}
+
+/// A table to read whole, as CSV text: a refined one filled to its grid
+/// (built in memory), any other as [`csv_of`].
+pub fn full_csv(table: &Path) -> Result<Box<dyn Read>> {
+    match grid(table)? {
+        Some(g) => {
+            let mut bytes = Vec::new();
+            fill(table, &g, &mut |row| {
+                bytes.extend_from_slice(row);
+                Ok(())
+            })?;
+            Ok(Box::new(std::io::Cursor::new(bytes)))
+        }
+        None => csv_of(table),
+    }
+}
+
 /// Every row of the full grid, in id order, to `out` (header first):
 /// computed rows as they are, the others filled from their nearest.
 pub fn fill(table: &Path, g: &Grid, out: &mut dyn FnMut(&[u8]) -> Result<()>) -> Result<u64> {
     // A Parquet table is read as the CSV's text (a refined table is small).
-    let source: Box<dyn std::io::Read> = if super::parquet_file::is_parquet(table) {
-        let (header, rows) = super::parquet_file::read_text(table)?;
-        let mut bytes = Vec::new();
-        for row in std::iter::once(&header).chain(&rows) {
-            for (k, f) in row.iter().enumerate() {
-                if k > 0 {
-                    bytes.push(b',');
-                }
-                super::row::push_csv_field(&mut bytes, f);
-            }
-            bytes.push(b'\n');
-        }
-        Box::new(std::io::Cursor::new(bytes))
-    } else {
-        Box::new(
-            std::fs::File::open(table)
-                .with_context(|| format!("cannot read {}", table.display()))?,
-        )
-    };
+    let source = csv_of(table)?;
     let mut r = BufReader::new(source);
     let mut header = Vec::new();
     r.read_until(b'\n', &mut header)?;
@@ -88,10 +109,7 @@ pub fn fill(table: &Path, g: &Grid, out: &mut dyn FnMut(&[u8]) -> Result<()>) ->
         if r.read_until(b'\n', &mut line)? == 0 {
             break;
         }
-        let end = line.iter().position(|&b| b == b',').unwrap_or(line.len());
-        let id: u64 = std::str::from_utf8(&line[..end])
-            .ok()
-            .and_then(|t| t.parse().ok())
+        let id: u64 = super::row::line_id(&line)
             .filter(|&id| id < total)
             .ok_or_else(|| {
                 bad(

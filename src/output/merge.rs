@@ -22,11 +22,6 @@ use super::partial::{partial_path, write_atomic};
 use crate::cli::TableKind;
 use crate::error::InputError;
 
-fn first_id(line: &[u8]) -> Option<u64> {
-    let end = line.iter().position(|&b| b == b',').unwrap_or(line.len());
-    std::str::from_utf8(&line[..end]).ok()?.trim().parse().ok()
-}
-
 fn bad(path: &Path, what: impl Into<String>) -> anyhow::Error {
     InputError::Data {
         path: path.to_path_buf(),
@@ -334,7 +329,8 @@ fn copy_rows(parts: &[Part], tmp: &Path) -> Result<u64> {
                     "its last row is incomplete (an interrupted run? finish it with --resume)",
                 ));
             }
-            let id = first_id(&line).ok_or_else(|| bad(&p.path, "a row without an id"))?;
+            let id =
+                super::row::line_id(&line).ok_or_else(|| bad(&p.path, "a row without an id"))?;
             if p.sparse() && id >= next && id < p.ids.1 {
                 next = id;
             }

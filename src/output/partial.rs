@@ -369,69 +369,67 @@ fn rewrite(
     to_parquet: Option<&(arrow_schema::SchemaRef, Vec<super::row::ColType>)>,
     out: &Path,
 ) -> Result<()> {
-    {
-        let ctx = || format!("cannot write {}", out.display());
-        let mut w = std::io::BufWriter::new(File::create(out).with_context(ctx)?);
-        let keep = keep.unwrap_or((0, u64::MAX));
-        match to_parquet {
-            None => {
-                let mut head = vec![0u8; head_len as usize];
-                std::io::Read::read_exact(&mut File::open(partial)?, &mut head)?;
-                w.write_all(&head).with_context(ctx)?;
-                interleave(partial, head_len, sections, &mut |id, line| {
-                    if (keep.0..keep.1).contains(&id) {
-                        w.write_all(line).with_context(ctx)?;
-                    }
-                    Ok(())
-                })?;
-                w.flush().with_context(ctx)?;
-                w.get_ref().sync_all().with_context(ctx)?;
-            }
-            Some((schema, types)) => {
-                use super::parquet_file::{Columns, SEGMENT_ROWS};
-                let mut writer = parquet::arrow::ArrowWriter::try_new(
-                    w,
-                    schema.clone(),
-                    Some(super::parquet_file::properties()),
-                )?;
-                let mut cols = Columns::new(schema, types, SEGMENT_ROWS as usize);
-                let mut n = 0u64;
-                interleave(partial, head_len, sections, &mut |id, line| {
-                    if !(keep.0..keep.1).contains(&id) {
-                        return Ok(());
-                    }
-                    let mut r = csv::ReaderBuilder::new()
-                        .has_headers(false)
-                        .from_reader(line);
-                    let rec = r
-                        .records()
-                        .next()
-                        .transpose()?
-                        .with_context(|| format!("an empty row in {}", partial.display()))?;
-                    for (f, t) in rec.iter().zip(types) {
-                        cols.push(super::row::Field::parse(f, *t));
-                    }
-                    n += 1;
-                    if n.is_multiple_of(SEGMENT_ROWS) {
-                        let full = std::mem::replace(
-                            &mut cols,
-                            Columns::new(schema, types, SEGMENT_ROWS as usize),
-                        );
-                        writer.write(&full.finish()?)?;
-                    }
-                    Ok(())
-                })?;
-                writer.write(&cols.finish()?)?;
-                let w = writer.into_inner()?;
-                w.into_inner()
-                    .map_err(|e| e.into_error())
-                    .with_context(ctx)?
-                    .sync_all()
-                    .with_context(ctx)?;
-            }
+    let ctx = || format!("cannot write {}", out.display());
+    let mut w = std::io::BufWriter::new(File::create(out).with_context(ctx)?);
+    let keep = keep.unwrap_or((0, u64::MAX));
+    match to_parquet {
+        None => {
+            let mut head = vec![0u8; head_len as usize];
+            std::io::Read::read_exact(&mut File::open(partial)?, &mut head)?;
+            w.write_all(&head).with_context(ctx)?;
+            interleave(partial, head_len, sections, &mut |id, line| {
+                if (keep.0..keep.1).contains(&id) {
+                    w.write_all(line).with_context(ctx)?;
+                }
+                Ok(())
+            })?;
+            w.flush().with_context(ctx)?;
+            w.get_ref().sync_all().with_context(ctx)?;
         }
-        Ok(())
+        Some((schema, types)) => {
+            use super::parquet_file::{Columns, SEGMENT_ROWS};
+            let mut writer = parquet::arrow::ArrowWriter::try_new(
+                w,
+                schema.clone(),
+                Some(super::parquet_file::properties()),
+            )?;
+            let mut cols = Columns::new(schema, types, SEGMENT_ROWS as usize);
+            let mut n = 0u64;
+            interleave(partial, head_len, sections, &mut |id, line| {
+                if !(keep.0..keep.1).contains(&id) {
+                    return Ok(());
+                }
+                let mut r = csv::ReaderBuilder::new()
+                    .has_headers(false)
+                    .from_reader(line);
+                let rec = r
+                    .records()
+                    .next()
+                    .transpose()?
+                    .with_context(|| format!("an empty row in {}", partial.display()))?;
+                for (f, t) in rec.iter().zip(types) {
+                    cols.push(super::row::Field::parse(f, *t));
+                }
+                n += 1;
+                if n.is_multiple_of(SEGMENT_ROWS) {
+                    let full = std::mem::replace(
+                        &mut cols,
+                        Columns::new(schema, types, SEGMENT_ROWS as usize),
+                    );
+                    writer.write(&full.finish()?)?;
+                }
+                Ok(())
+            })?;
+            writer.write(&cols.finish()?)?;
+            let w = writer.into_inner()?;
+            w.into_inner()
+                .map_err(|e| e.into_error())
+                .with_context(ctx)?
+                .sync_all()
+                .with_context(ctx)?;
+        }
     }
+    Ok(())
 }
 
 /// The rows of `partial`'s `sections` (consecutive runs of rows after its
@@ -459,13 +457,7 @@ fn interleave(
             r.read_until(b'\n', &mut line)?;
         }
     }
-    let id_of = |l: &[u8]| -> u64 {
-        let end = l.iter().position(|&b| b == b',').unwrap_or(l.len());
-        std::str::from_utf8(&l[..end])
-            .ok()
-            .and_then(|t| t.parse().ok())
-            .unwrap_or(u64::MAX)
-    };
+    let id_of = |l: &[u8]| super::row::line_id(l).unwrap_or(u64::MAX);
     // The next row of each section, merged by id.
     let mut heads: Vec<Option<Vec<u8>>> = vec![None; readers.len()];
     let mut advance = |k: usize, heads: &mut Vec<Option<Vec<u8>>>| -> Result<()> {

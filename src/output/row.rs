@@ -130,6 +130,12 @@ pub fn num_into(x: f64, s: &mut String) {
     }
 }
 
+/// The id of a CSV row (its first field), if it has one.
+pub fn line_id(line: &[u8]) -> Option<u64> {
+    let end = line.iter().position(|&b| b == b',').unwrap_or(line.len());
+    std::str::from_utf8(&line[..end]).ok()?.trim().parse().ok()
+}
+
 /// Append one CSV field as the `csv` crate writes it (RFC 4180, quotes only
 /// where needed): quoted, with quotes doubled, when it holds a comma, a
 /// quote or a line break. Sweep rows are written with this; the header and

@@ -9,6 +9,16 @@ use std::io::Write;
 
 use crate::engine::{Chain, Observer};
 
+/// The trace row spacing when none is given (s): 400 rows per swing of a
+/// pendulum, 20 per contact of a free line.
+pub fn default_every(chain: &Chain) -> f64 {
+    if chain.is_pendulum() {
+        std::f64::consts::TAU / chain.omega() / 400.0
+    } else {
+        chain.time_scale().map_or(1e-6, |tc| tc / 20.0)
+    }
+}
+
 pub struct TraceWriter<W: Write> {
     out: W,
     body_of_ball: Vec<usize>,

@@ -20,38 +20,17 @@ fn data_err(path: &Path, what: impl Into<String>) -> InputError {
 
 impl Table {
     pub fn read(path: &Path) -> Result<Table, InputError> {
-        // A refined sweep's table is drawn as the full grid (`output::fill`).
-        let filled = match crate::output::fill::grid(path) {
-            Ok(Some(g)) => {
-                let mut bytes = Vec::new();
-                crate::output::fill::fill(path, &g, &mut |row| {
-                    bytes.extend_from_slice(row);
-                    Ok(())
-                })
-                .map_err(|e| data_err(path, format!("cannot fill the refined table: {e:#}")))?;
-                Some(bytes)
+        // A refined sweep's table is drawn as the full grid (`output::fill`),
+        // a Parquet table read as the CSV's text.
+        let source = crate::output::fill::full_csv(path).map_err(|e| {
+            match e.downcast::<std::io::Error>() {
+                Ok(error) => InputError::Read {
+                    path: path.to_path_buf(),
+                    error,
+                },
+                Err(e) => data_err(path, format!("cannot read the table: {e:#}")),
             }
-            _ => None,
-        };
-        if filled.is_none() && crate::output::parquet_file::is_parquet(path) {
-            let (header, rows) = crate::output::parquet_file::read_text(path)
-                .map_err(|e| data_err(path, format!("not a readable Parquet table: {e:#}")))?;
-            if rows.is_empty() {
-                return Err(data_err(path, "has no rows"));
-            }
-            return Ok(Table {
-                path: path.to_path_buf(),
-                header,
-                rows,
-            });
-        }
-        let source: Box<dyn std::io::Read> = match filled {
-            Some(bytes) => Box::new(std::io::Cursor::new(bytes)),
-            None => Box::new(std::fs::File::open(path).map_err(|error| InputError::Read {
-                path: path.to_path_buf(),
-                error,
-            })?),
-        };
+        })?;
         let mut r = csv::ReaderBuilder::new()
             .flexible(false)
             .from_reader(source);

@@ -307,7 +307,7 @@ impl Sweep {
                     ),
                 ));
             }
-            if let Some((d, num, seed)) = sample {
+            let values = if let Some((d, num, seed)) = sample {
                 let bad = |allowed: &str| {
                     invalid(
                         line,
@@ -353,7 +353,7 @@ impl Sweep {
                         design::MAX_SOBOL_AXES
                     )));
                 }
-                let values = Values::Sample(axis::Sample {
+                Values::Sample(axis::Sample {
                     design: d,
                     axis: axes.len(),
                     num: num as usize,
@@ -362,126 +362,118 @@ impl Sweep {
                     hi,
                     log,
                     integer,
-                });
-                axes.push((
-                    line,
-                    Axis {
-                        name,
-                        param,
-                        values,
-                        line,
-                    },
-                ));
-                continue;
-            }
-            if a.range.is_some() || a.scale.is_some() {
-                return Err(invalid(
-                    line,
-                    &name,
-                    "range/scale".into(),
-                    "`range` and `scale` belong to a sampling design: add a [sample] table, or give values/linspace/logspace".into(),
-                ));
-            }
-            let kinds = [
-                a.values.is_some(),
-                a.linspace.is_some(),
-                a.logspace.is_some(),
-            ];
-            if kinds.iter().filter(|k| **k).count() != 1 {
-                return Err(invalid(
-                    line,
-                    &name,
-                    format!("{} range kinds", kinds.iter().filter(|k| **k).count()),
-                    "exactly one of `values`, `linspace`, `logspace`".into(),
-                ));
-            }
-            let range = |key: &str, r: &[f64]| -> Result<(f64, f64, usize), InputError> {
-                let bad = || {
-                    invalid(line, key, format!("{r:?}"), format!("[start, stop, num] with finite start/stop and an integer num in 1 ..= {}", axis::MAX_AXIS_VALUES))
-                };
-                match r {
-                    [a, b, n]
-                        if a.is_finite()
-                            && b.is_finite()
-                            && n.fract() == 0.0
-                            && *n >= 1.0
-                            && *n <= axis::MAX_AXIS_VALUES as f64 =>
-                    {
-                        Ok((*a, *b, *n as usize))
-                    }
-                    [_, _, n] if *n < 1.0 => Err(invalid(
-                        line,
-                        key,
-                        format!("{r:?}"),
-                        "at least 1 point (num ≥ 1)".into(),
-                    )),
-                    _ => Err(bad()),
-                }
-            };
-            let values = if let Some(v) = &a.values {
-                if v.is_empty() {
-                    return Err(invalid(
-                        line,
-                        "values",
-                        "[]".into(),
-                        "at least one value".into(),
-                    ));
-                }
-                if v.len() > axis::MAX_AXIS_VALUES {
-                    return Err(invalid(
-                        line,
-                        "values",
-                        format!("{} values", v.len()),
-                        format!("at most {}", axis::MAX_AXIS_VALUES),
-                    ));
-                }
-                Values::List(
-                    v.iter()
-                        .map(|x| match x {
-                            toml::Value::Float(f) => Ok(Value::Num(*f)),
-                            toml::Value::Integer(i) => Ok(Value::Num(*i as f64)),
-                            toml::Value::String(s) => Ok(Value::Text(s.clone())),
-                            other => Err(invalid(
-                                line,
-                                "values",
-                                other.to_string(),
-                                "numbers, or strings for `glue`".into(),
-                            )),
-                        })
-                        .collect::<Result<_, _>>()?,
-                )
-            } else if let Some(r) = &a.linspace {
-                let (start, stop, num) = range("linspace", r)?;
-                Values::Linspace { start, stop, num }
+                })
             } else {
-                let r = a.logspace.as_deref().unwrap_or_default();
-                let (start, stop, num) = range("logspace", r)?;
-                if start <= 0.0 || stop <= 0.0 {
+                if a.range.is_some() || a.scale.is_some() {
                     return Err(invalid(
                         line,
-                        "logspace",
-                        format!("{r:?}"),
-                        "start and stop must be > 0 (they are values, not exponents)".into(),
+                        &name,
+                        "range/scale".into(),
+                        "`range` and `scale` belong to a sampling design: add a [sample] table, or give values/linspace/logspace".into(),
                     ));
                 }
-                Values::Logspace { start, stop, num }
-            };
-            if param.kind == axis::Kind::Integer {
-                // An integer param run as something else under its own label
-                // would mislabel every row: only whole numbers.
-                for i in 0..values.len() {
-                    if let Value::Num(x) = values.get(i) {
-                        if x.fract() != 0.0 || !x.is_finite() {
-                            return Err(invalid(
-                                line,
-                                &name,
-                                format!("{x} (value {i} of the axis)"),
-                                "whole numbers only: this parameter is an integer".into(),
-                            ));
+                let kinds = [
+                    a.values.is_some(),
+                    a.linspace.is_some(),
+                    a.logspace.is_some(),
+                ];
+                if kinds.iter().filter(|k| **k).count() != 1 {
+                    return Err(invalid(
+                        line,
+                        &name,
+                        format!("{} range kinds", kinds.iter().filter(|k| **k).count()),
+                        "exactly one of `values`, `linspace`, `logspace`".into(),
+                    ));
+                }
+                let range = |key: &str, r: &[f64]| -> Result<(f64, f64, usize), InputError> {
+                    let bad = || {
+                        invalid(line, key, format!("{r:?}"), format!("[start, stop, num] with finite start/stop and an integer num in 1 ..= {}", axis::MAX_AXIS_VALUES))
+                    };
+                    match r {
+                        [a, b, n]
+                            if a.is_finite()
+                                && b.is_finite()
+                                && n.fract() == 0.0
+                                && *n >= 1.0
+                                && *n <= axis::MAX_AXIS_VALUES as f64 =>
+                        {
+                            Ok((*a, *b, *n as usize))
+                        }
+                        [_, _, n] if *n < 1.0 => Err(invalid(
+                            line,
+                            key,
+                            format!("{r:?}"),
+                            "at least 1 point (num ≥ 1)".into(),
+                        )),
+                        _ => Err(bad()),
+                    }
+                };
+                let values = if let Some(v) = &a.values {
+                    if v.is_empty() {
+                        return Err(invalid(
+                            line,
+                            "values",
+                            "[]".into(),
+                            "at least one value".into(),
+                        ));
+                    }
+                    if v.len() > axis::MAX_AXIS_VALUES {
+                        return Err(invalid(
+                            line,
+                            "values",
+                            format!("{} values", v.len()),
+                            format!("at most {}", axis::MAX_AXIS_VALUES),
+                        ));
+                    }
+                    Values::List(
+                        v.iter()
+                            .map(|x| match x {
+                                toml::Value::Float(f) => Ok(Value::Num(*f)),
+                                toml::Value::Integer(i) => Ok(Value::Num(*i as f64)),
+                                toml::Value::String(s) => Ok(Value::Text(s.clone())),
+                                other => Err(invalid(
+                                    line,
+                                    "values",
+                                    other.to_string(),
+                                    "numbers, or strings for `glue`".into(),
+                                )),
+                            })
+                            .collect::<Result<_, _>>()?,
+                    )
+                } else if let Some(r) = &a.linspace {
+                    let (start, stop, num) = range("linspace", r)?;
+                    Values::Linspace { start, stop, num }
+                } else {
+                    let r = a.logspace.as_deref().unwrap_or_default();
+                    let (start, stop, num) = range("logspace", r)?;
+                    if start <= 0.0 || stop <= 0.0 {
+                        return Err(invalid(
+                            line,
+                            "logspace",
+                            format!("{r:?}"),
+                            "start and stop must be > 0 (they are values, not exponents)".into(),
+                        ));
+                    }
+                    Values::Logspace { start, stop, num }
+                };
+                if param.kind == axis::Kind::Integer {
+                    // An integer param run as something else under its own label
+                    // would mislabel every row: only whole numbers.
+                    for i in 0..values.len() {
+                        if let Value::Num(x) = values.get(i) {
+                            if x.fract() != 0.0 || !x.is_finite() {
+                                return Err(invalid(
+                                    line,
+                                    &name,
+                                    format!("{x} (value {i} of the axis)"),
+                                    "whole numbers only: this parameter is an integer".into(),
+                                ));
+                            }
                         }
                     }
                 }
-            }
+                values
+            };
             axes.push((
                 line,
                 Axis {

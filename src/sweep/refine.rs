@@ -415,15 +415,22 @@ pub fn run(
     };
     let bar = o.bar;
     let values: Mutex<Values> = Mutex::new(HashMap::new());
-    // (id, column text) of each CSV row in `bytes`.
+    // Ids of the rows whose status is ok (for the sidecar's counts).
+    let ok_ids: Mutex<BTreeSet<u64>> = Mutex::new(BTreeSet::new());
+    let status = 1 + sweep.axes.len();
+    // The column's text (and whether ok) of each CSV row in `bytes`.
     let record = |bytes: &[u8]| {
         let mut r = csv::ReaderBuilder::new()
             .has_headers(false)
             .from_reader(bytes);
         let mut v = values.lock().unwrap_or_else(|e| e.into_inner());
+        let mut ok = ok_ids.lock().unwrap_or_else(|e| e.into_inner());
         for rec in r.records().flatten() {
             if let Some(id) = rec.get(0).and_then(|t| t.parse::<u64>().ok()) {
                 v.insert(id, rec.get(col).unwrap_or("").to_string());
+                if rec.get(status) == Some("ok") {
+                    ok.insert(id);
+                }
             }
         }
     };
@@ -439,11 +446,7 @@ pub fn run(
             if r.read_until(b'\n', &mut line)? == 0 || line.last() != Some(&b'\n') {
                 break;
             }
-            let end = line.iter().position(|&b| b == b',').unwrap_or(line.len());
-            let id = std::str::from_utf8(&line[..end])
-                .ok()
-                .and_then(|t| t.parse().ok())
-                .unwrap_or(u64::MAX);
+            let id = crate::output::row::line_id(&line).unwrap_or(u64::MAX);
             earlier.push((id, line.clone()));
         }
     }
@@ -521,30 +524,17 @@ pub fn run(
         out.to_parquet = Some((sweep.arrow_schema(), sweep.column_types()));
     }
     // What the finished file holds: this shard's rows, and how many are ok.
-    let status = 1 + sweep.axes.len();
-    let (rows, ok_rows) = {
-        let partial = crate::output::partial::partial_path(&opts.out);
-        let mut r = std::io::BufReader::new(std::fs::File::open(&partial)?);
-        let mut line = Vec::new();
-        r.read_until(b'\n', &mut line)?;
-        let (mut rows, mut ok) = (0u64, 0u64);
-        loop {
-            line.clear();
-            if r.read_until(b'\n', &mut line)? == 0 {
-                break;
-            }
-            let mut f = line.split(|&b| b == b',');
-            let id: u64 = f
-                .next()
-                .and_then(|t| std::str::from_utf8(t).ok()?.parse().ok())
-                .unwrap_or(u64::MAX);
-            if (lo..hi).contains(&id) {
-                rows += 1;
-                ok += (f.nth(status - 1) == Some(b"ok")) as u64;
-            }
-        }
-        (rows, ok)
-    };
+    let rows = values
+        .lock()
+        .unwrap_or_else(|e| e.into_inner())
+        .keys()
+        .filter(|id| (lo..hi).contains(*id))
+        .count() as u64;
+    let ok_rows = ok_ids
+        .lock()
+        .unwrap_or_else(|e| e.into_inner())
+        .range(lo..hi)
+        .count() as u64;
     let wall_s = t0.elapsed().as_secs_f64();
     let refine = serde_json::json!({
         "column": spec.column,
