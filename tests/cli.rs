@@ -400,3 +400,73 @@ fn example_outputs_are_byte_identical_to_the_pinned_ones() {
     let run = success(&["run", "cradle-1", "--format", "csv"]);
     assert_eq!((run.len(), fnv1a(&run)), (426, 0x2eb3ce940b047d67));
 }
+
+/// `cradle sweep --backend gpu` writes the CPU's bytes (f64 bit for bit) with
+/// both GPU profiles: the software one (a batch per call, a worker per
+/// scene) and the hardware one (four calls at once, each waiting on its own
+/// submissions, workers refilled from the queue, rounds per dispatch paced
+/// by time) that a real GPU gets — run here on whatever adapter there is
+/// (lavapipe in CI). The sidecar counts the dispatches.
+#[test]
+fn gpu_sweep_writes_the_cpu_bytes_with_either_profile() {
+    let dir = tempfile::tempdir().unwrap();
+    let want = fs::read("results/glue_launch.csv").unwrap();
+    for profile in ["software", "hardware"] {
+        let out = dir.path().join(format!("{profile}.csv"));
+        let o = cradle()
+            .args([
+                "sweep",
+                "examples/glue_launch.toml",
+                "--backend",
+                "gpu",
+                "--out",
+            ])
+            .arg(&out)
+            .env("CRADLE_GPU_PROFILE", profile)
+            .output()
+            .unwrap();
+        if !o.status.success() {
+            let err = String::from_utf8_lossy(&o.stderr);
+            if err.contains("no GPU adapter")
+                && std::env::var("CRADLE_REQUIRE_GPU").as_deref() != Ok("1")
+            {
+                eprintln!(
+                    "SKIPPED: no GPU adapter (set CRADLE_REQUIRE_GPU=1 to make this a failure)"
+                );
+                return;
+            }
+            panic!("{profile}: {err}");
+        }
+        assert!(
+            fs::read(&out).unwrap() == want,
+            "{profile}: bytes differ from the CPU's"
+        );
+        let side: serde_json::Value = serde_json::from_slice(
+            &fs::read(dir.path().join(format!("{profile}.csv.json"))).unwrap(),
+        )
+        .unwrap();
+        assert_eq!(side["backend"], "gpu", "{profile}");
+        assert!(
+            side["stages_s"]["gpu"]["dispatches"].as_u64().unwrap() > 0,
+            "{profile}"
+        );
+    }
+    let o = cradle()
+        .args([
+            "sweep",
+            "examples/glue_launch.toml",
+            "--backend",
+            "gpu",
+            "--out",
+        ])
+        .arg(dir.path().join("bad.csv"))
+        .env("CRADLE_GPU_PROFILE", "fast")
+        .output()
+        .unwrap();
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("allowed values are hardware and software"),
+        "{err}"
+    );
+}

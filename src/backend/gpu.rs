@@ -11,9 +11,9 @@ use anyhow::{anyhow, bail, Context, Result};
 use bytemuck::Pod;
 use wgpu::util::DeviceExt;
 
-use super::layout::{self, GpuHeader, END_RUNNING, PARAMS, STATE, WORDS};
+use super::layout::{self, GpuHeader, GpuQueue, END_RUNNING, NO_SCENE, PARAMS, STATE, WORDS};
 use super::layout::{FLAG_DAMPED, FLAG_DRAG, FLAG_EXACT, FLAG_PENDULUM};
-use super::{Backend, Job};
+use super::{Backend, DeviceStats, Job};
 use crate::engine::integrate::{closing_speed_floor, kick_weights, Run};
 use crate::engine::real::Real;
 use crate::engine::{plan, simulate_chain, Chain, Outcome, Silent, Solver, UNSTEPPED};
@@ -23,10 +23,145 @@ use crate::scene::Precision;
 pub const SHADER_BODY: &str = include_str!("../engine/integrate/integrate.wgsl");
 /// Threads per workgroup (`@workgroup_size` in the shader).
 const WORKGROUP: u32 = 64;
-/// Scenes per sweep batch on a hardware GPU (`Backend::batch_size`).
-const HARDWARE_BATCH: u64 = 16_384;
-/// Dispatches submitted between two looks at which scenes are still running.
-const DISPATCHES_PER_ROUND: usize = 4;
+/// Rounds (submissions of a few dispatches, then a look at the queue's
+/// counters) queued at once: the device runs one while the host reads the
+/// other's counters.
+const ROUNDS_IN_FLIGHT: usize = 2;
+/// Loop rounds a round of dispatches should give each worker when not timed
+/// (dispatches per round = this / rounds per dispatch, 2..=32).
+const ROUND_ROUNDS: u32 = 2048;
+/// Dispatches per round on a timed profile.
+const TIMED_DISPATCHES: u32 = 4;
+/// Rounds per dispatch a timed profile starts with, and its bounds.
+const FIRST_ROUNDS: u32 = 256;
+const TIMED_ROUNDS: std::ops::RangeInclusive<u32> = 16..=65_536;
+/// A round's wall time on a timed profile is kept between these (seconds):
+/// long enough that the host's look costs little, short enough for driver
+/// watchdogs and for rows to flow.
+const ROUND_S: (f64, f64) = (0.002, 0.016);
+
+/// How the backend uses a device: scenes per call, calls at once, workers,
+/// pacing. A hardware GPU gets [`Profile::HARDWARE`], a software adapter
+/// [`Profile::SOFTWARE`]; `CRADLE_GPU_PROFILE=hardware|software` picks one
+/// (so the hardware path runs on lavapipe in tests and CI), and tests set
+/// their own with [`Gpu::with_profile`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Profile {
+    /// Scenes per sweep batch (`Backend::batch_size`).
+    pub batch: u64,
+    /// Batches on the device at once (`Backend::max_concurrent_runs`); each
+    /// waits only for its own submissions.
+    pub calls: usize,
+    /// Scenes per worker (1: a worker per scene; k: n/k workers, each taking
+    /// about k scenes in turn).
+    pub scenes_per_worker: u32,
+    /// Loop rounds per worker and dispatch; `None`: by time (`timed`) or by
+    /// llvmpipe's loop limit. On a software adapter [`dispatch_budget`] caps
+    /// any of them.
+    pub rounds: Option<u32>,
+    /// Double or halve the rounds per dispatch to keep a round in `ROUND_S`.
+    pub timed: bool,
+}
+
+impl Profile {
+    /// 16,384 scenes a call, four calls at once, a quarter as many workers
+    /// as scenes (16,384 workers and 65,536 scenes resident; not yet tuned
+    /// on a GPU), paced by time.
+    pub const HARDWARE: Profile = Profile {
+        batch: 16_384,
+        calls: 4,
+        scenes_per_worker: 4,
+        rounds: None,
+        timed: true,
+    };
+    /// lavapipe runs on the cores the lanes use: the CPU's batch, one call at
+    /// a time (two at once were 3× slower on grid100), a worker per scene,
+    /// rounds by the loop limit.
+    pub const SOFTWARE: Profile = Profile {
+        batch: crate::sweep::pipeline::BATCH,
+        calls: 1,
+        scenes_per_worker: 1,
+        rounds: None,
+        timed: false,
+    };
+
+    /// `CRADLE_GPU_PROFILE`'s value, if set.
+    pub fn from_env() -> Result<Option<Profile>> {
+        match std::env::var("CRADLE_GPU_PROFILE") {
+            Err(_) => Ok(None),
+            Ok(v) => match v.as_str() {
+                "hardware" => Ok(Some(Profile::HARDWARE)),
+                "software" => Ok(Some(Profile::SOFTWARE)),
+                other => {
+                    bail!("CRADLE_GPU_PROFILE={other:?}: allowed values are hardware and software")
+                }
+            },
+        }
+    }
+}
+
+/// Rounds per dispatch and dispatches per round of one batch.
+struct Pace {
+    rounds: u32,
+    dispatches: u32,
+    timed: bool,
+    /// The most rounds per dispatch (a software adapter's loop limit).
+    most: u32,
+}
+
+impl Pace {
+    /// After a round that took `secs` (between two looks), on a timed
+    /// profile: double or halve the rounds per dispatch to stay in `ROUND_S`.
+    fn adapt(&mut self, secs: f64) {
+        if !self.timed {
+            return;
+        }
+        let r = if secs < ROUND_S.0 {
+            self.rounds.saturating_mul(2)
+        } else if secs > ROUND_S.1 {
+            self.rounds / 2
+        } else {
+            self.rounds
+        };
+        self.rounds = r
+            .clamp(*TIMED_ROUNDS.start(), *TIMED_ROUNDS.end())
+            .min(self.most);
+    }
+}
+
+/// Dispatches, rounds and the time any submission was in flight.
+#[derive(Default)]
+struct Tracker {
+    inner: Mutex<(DeviceStats, usize, Option<std::time::Instant>)>,
+}
+
+impl Tracker {
+    fn submitted(&self, dispatches: u64) {
+        let mut g = self.inner.lock().unwrap_or_else(|e| e.into_inner());
+        let (st, n, since) = &mut *g;
+        st.dispatches += dispatches;
+        st.rounds += u64::from(dispatches > 0);
+        if *n == 0 {
+            *since = Some(std::time::Instant::now());
+        }
+        *n += 1;
+    }
+
+    fn completed(&self) {
+        let mut g = self.inner.lock().unwrap_or_else(|e| e.into_inner());
+        let (st, n, since) = &mut *g;
+        *n = n.saturating_sub(1);
+        if *n == 0 {
+            if let Some(t) = since.take() {
+                st.in_flight_s += t.elapsed().as_secs_f64();
+            }
+        }
+    }
+
+    fn get(&self) -> DeviceStats {
+        self.inner.lock().unwrap_or_else(|e| e.into_inner()).0
+    }
+}
 
 /// The whole shader for one precision and chains of up to `max_bodies`
 /// bodies: the generated prelude (types, layout, codes, constants, the
@@ -67,18 +202,27 @@ fn loops_per_step(ch: &Chain, n_weights: usize) -> usize {
     step.max(3 * nc + 32)
 }
 
-/// Steps per dispatch, the same for every scene of a dispatch: llvmpipe runs
+/// [`loops_per_step`] a worker may run per dispatch on a software adapter.
+/// Measured on lavapipe (LLVM 15, 256-bit): the worker loop gave wrong
+/// outcomes on the 2–8-ball slice of examples/stress.toml from about 25,000
+/// on (the one-scene-per-invocation loop before it had passed at 30,000);
+/// 12,000 keeps a margin of 2. `tests/backends.rs` runs that slice.
+const LOOP_CAP: usize = 12_000;
+
+/// Loop rounds per worker and dispatch on a software adapter: llvmpipe runs
 /// the invocations of a SIMD vector in lock step and silently cuts loops short
 /// once the vector has run about 2^16 loop iterations (measured: 1,986 Verlet
-/// steps of a 5-ball chain), so the costliest scene of the batch sets it, with
-/// a margin of 2 (real GPUs have watchdogs instead). At most 4096 steps.
+/// steps of a 5-ball chain), so the costliest scene of the batch sets it
+/// ([`LOOP_CAP`]; a worker's rounds over all the scenes it takes in one
+/// dispatch, one round charged per scene taken, stay within it; real GPUs
+/// have watchdogs instead, and are paced by time). At most 4096.
 pub fn dispatch_budget(jobs: &[(&Chain, &Solver)]) -> u32 {
     let worst = jobs
         .iter()
         .map(|(ch, s)| loops_per_step(ch, crate::engine::solver::weights(s.method).len()))
         .max()
         .unwrap_or(1);
-    (30_000 / worst).clamp(1, 4096) as u32
+    (LOOP_CAP / worst).clamp(1, 4096) as u32
 }
 
 /// Which adapters a backend may use.
@@ -145,6 +289,8 @@ pub struct Gpu {
     max_workgroups: u32,
     /// Largest storage buffer binding (bytes).
     max_binding: u64,
+    profile: Profile,
+    stats: Tracker,
 }
 
 impl Gpu {
@@ -175,7 +321,8 @@ impl Gpu {
             },
             count: None,
         };
-        // The shader's signature: headers, params (read); out_real, out_u32 (write).
+        // The shader's signature: headers, params (read); out_real, out_u32,
+        // queue, workers (read and write).
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("cradle scenes"),
             entries: &[
@@ -183,6 +330,8 @@ impl Gpu {
                 storage(1, true),
                 storage(2, false),
                 storage(3, false),
+                storage(4, false),
+                storage(5, false),
             ],
         });
         let pl = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -199,9 +348,15 @@ impl Gpu {
             pipeline_layout: pl,
             pipes: Mutex::new(HashMap::new()),
             f64_ok,
-            info,
+            info: info.clone(),
             max_workgroups,
             max_binding,
+            profile: if info.device_type == wgpu::DeviceType::Cpu {
+                Profile::SOFTWARE
+            } else {
+                Profile::HARDWARE
+            },
+            stats: Tracker::default(),
         };
         // Build the largest class now: a shader that does not build on this
         // adapter fails here, before any work, not in the middle of a sweep.
@@ -256,6 +411,16 @@ impl Gpu {
         let pipe = Arc::new(pipe);
         pipes.insert(key, pipe.clone());
         Ok(pipe)
+    }
+
+    /// The same context using the device as `profile` says.
+    pub fn with_profile(mut self, profile: Profile) -> Gpu {
+        self.profile = profile;
+        self
+    }
+
+    pub fn profile(&self) -> Profile {
+        self.profile
     }
 
     pub fn info(&self) -> &wgpu::AdapterInfo {
@@ -321,7 +486,6 @@ impl Gpu {
     ) -> Result<Vec<(Run, f64)>> {
         let mut headers = Vec::with_capacity(jobs.len());
         let mut dts = Vec::with_capacity(jobs.len());
-        let budget = dispatch_budget(jobs);
         let mut params: Vec<R> = Vec::new();
         // The state each scene starts from, exactly as the CPU integrator does.
         let mut state: Vec<R> = Vec::new();
@@ -337,7 +501,6 @@ impl Gpu {
                 max_steps: lim.max_steps.min(u32::MAX as u64) as u32,
                 n_weights: sp.weights.len() as u32,
                 quarters: if sp.graded { sp.grade_quarters } else { 0 },
-                budget,
                 flags: [
                     (ch.is_pendulum(), FLAG_PENDULUM),
                     (ch.damping_a > 0.0, FLAG_DAMPED),
@@ -404,92 +567,7 @@ impl Gpu {
             state.extend([0.0, -1.0, -1.0, 0.0, 0.0, ch.x0[0], 0.0, 0.0].map(R::of));
             assert_eq!(state.len() - s0, layout::len(STATE, nb, nw));
         }
-        let words0: Vec<u32> = jobs
-            .iter()
-            .flat_map(|_| {
-                WORDS
-                    .iter()
-                    .map(|w| if *w == "end" { END_RUNNING } else { 0 })
-            })
-            .collect();
-        let d = &self.device;
-        let init = |label, contents: &[u8], usage| {
-            d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some(label),
-                contents,
-                usage,
-            })
-        };
-        let buffer = |label, size: u64, usage| {
-            d.create_buffer(&wgpu::BufferDescriptor {
-                label: Some(label),
-                size,
-                usage,
-                mapped_at_creation: false,
-            })
-        };
-        let storage = wgpu::BufferUsages::STORAGE;
-        let state_usage = storage | wgpu::BufferUsages::COPY_SRC;
-        let staging = wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST;
-        let hdr = init("headers", bytemuck::cast_slice(&headers), storage);
-        let par = init("params", bytemuck::cast_slice(&params), storage);
-        let out_r = init("state_real", bytemuck::cast_slice(&state), state_usage);
-        let out_u = init("state_u32", bytemuck::cast_slice(&words0), state_usage);
-        let (size_r, size_u) = (out_r.size(), out_u.size());
-        let read_r = buffer("read_real", size_r, staging);
-        let read_u = buffer("read_u32", size_u, staging);
-        let bind = d.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("scenes"),
-            layout: &self.layout,
-            entries: &[
-                wgpu::BindGroupEntry {
-                    binding: 0,
-                    resource: hdr.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 1,
-                    resource: par.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 2,
-                    resource: out_r.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 3,
-                    resource: out_u.as_entire_binding(),
-                },
-            ],
-        });
-        let groups = (jobs.len() as u32).div_ceil(WORKGROUP);
-        // Dispatch rounds until no scene is still running; each round is a few
-        // dispatches of at most `budget` steps per scene, then a look at the ends.
-        let words = loop {
-            let mut enc = d.create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                label: Some("integrate"),
-            });
-            for _ in 0..DISPATCHES_PER_ROUND {
-                let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                    label: Some("integrate"),
-                    timestamp_writes: None,
-                });
-                pass.set_pipeline(pipe);
-                pass.set_bind_group(0, &bind, &[]);
-                pass.dispatch_workgroups(groups, 1, 1);
-            }
-            enc.copy_buffer_to_buffer(&out_u, 0, &read_u, 0, size_u);
-            self.queue.submit(Some(enc.finish()));
-            let words: Vec<u32> = self.read_back(&read_u)?;
-            if !words.iter().step_by(WORDS.len()).any(|&e| e == END_RUNNING) {
-                break words;
-            }
-        };
-        let mut enc = d.create_command_encoder(&wgpu::CommandEncoderDescriptor {
-            label: Some("read back"),
-        });
-        enc.copy_buffer_to_buffer(&out_r, 0, &read_r, 0, size_r);
-        self.queue.submit(Some(enc.finish()));
-        let reals: Vec<R> = self.read_back(&read_r)?;
-
+        let (words, reals) = self.integrate::<R>(pipe, jobs, &headers, &params, &state)?;
         Ok(headers
             .iter()
             .zip(jobs)
@@ -532,14 +610,214 @@ impl Gpu {
             .collect())
     }
 
-    /// Wait for the GPU and copy a mappable buffer's contents out.
-    fn read_back<T: Pod>(&self, b: &wgpu::Buffer) -> Result<Vec<T>> {
-        let (tx, rx) = std::sync::mpsc::channel();
-        b.slice(..).map_async(wgpu::MapMode::Read, move |r| {
-            let _ = tx.send(r);
+    /// Run the packed batch to the end of every scene on the device: workers
+    /// (one per scene on a software adapter, a quarter as many on a hardware
+    /// GPU, refilled from the queue as their scenes end), rounds of dispatches
+    /// with the next round submitted before the last one's queue counters are
+    /// read (the device never waits for the host), rounds per dispatch by
+    /// time on hardware and by llvmpipe's loop limit on software. Returns
+    /// the words and the state of every scene.
+    fn integrate<R: Real + Pod>(
+        &self,
+        pipe: &wgpu::ComputePipeline,
+        jobs: &[(&Chain, &Solver)],
+        headers: &[GpuHeader],
+        params: &[R],
+        state: &[R],
+    ) -> Result<(Vec<u32>, Vec<R>)> {
+        let n = headers.len() as u32;
+        let d = &self.device;
+        let init = |label, contents: &[u8], usage| {
+            d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(label),
+                contents,
+                usage,
+            })
+        };
+        let buffer = |label, size: u64, usage| {
+            d.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size,
+                usage,
+                mapped_at_creation: false,
+            })
+        };
+        let mut pace = self.pace(jobs);
+        let workers = n.div_ceil(self.profile.scenes_per_worker.max(1)).max(1);
+        let words0: Vec<u32> = (0..n)
+            .flat_map(|_| {
+                WORDS
+                    .iter()
+                    .map(|w| if *w == "end" { END_RUNNING } else { 0 })
+            })
+            .collect();
+        let storage = wgpu::BufferUsages::STORAGE;
+        let readable = storage | wgpu::BufferUsages::COPY_SRC;
+        let staging = wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST;
+        let hdr = init("headers", bytemuck::cast_slice(headers), storage);
+        let par = init("params", bytemuck::cast_slice(params), storage);
+        let out_r = init("state_real", bytemuck::cast_slice(state), readable);
+        let out_u = init("state_u32", bytemuck::cast_slice(&words0), readable);
+        let queue0 = GpuQueue {
+            next: 0,
+            done: 0,
+            n,
+            budget: pace.rounds,
+        };
+        let qbuf = init(
+            "queue",
+            bytemuck::bytes_of(&queue0),
+            readable | wgpu::BufferUsages::COPY_DST,
+        );
+        let wbuf = init(
+            "workers",
+            bytemuck::cast_slice(&vec![NO_SCENE; workers as usize]),
+            storage,
+        );
+        let qsize = qbuf.size();
+        // One staging buffer per round in flight.
+        let qread: Vec<wgpu::Buffer> = (0..ROUNDS_IN_FLIGHT)
+            .map(|_| buffer("read_queue", qsize, staging))
+            .collect();
+        fn entry(binding: u32, b: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
+            wgpu::BindGroupEntry {
+                binding,
+                resource: b.as_entire_binding(),
+            }
+        }
+        let bind = d.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("scenes"),
+            layout: &self.layout,
+            entries: &[
+                entry(0, &hdr),
+                entry(1, &par),
+                entry(2, &out_r),
+                entry(3, &out_u),
+                entry(4, &qbuf),
+                entry(5, &wbuf),
+            ],
         });
+        let groups = workers.div_ceil(WORKGROUP);
+        type Pending = (
+            wgpu::SubmissionIndex,
+            usize,
+            std::sync::mpsc::Receiver<Result<(), wgpu::BufferAsyncError>>,
+        );
+        let mut in_flight: std::collections::VecDeque<Pending> = Default::default();
+        let mut slot = 0;
+        let mut budget_written = pace.rounds;
+        let mut last_seen = std::time::Instant::now();
+        loop {
+            // Keep ROUNDS_IN_FLIGHT rounds queued: the device works on the
+            // next while the host reads the last one's counters.
+            while in_flight.len() < ROUNDS_IN_FLIGHT {
+                if pace.rounds != budget_written {
+                    let at = std::mem::offset_of!(GpuQueue, budget) as u64;
+                    self.queue
+                        .write_buffer(&qbuf, at, bytemuck::bytes_of(&pace.rounds));
+                    budget_written = pace.rounds;
+                }
+                let mut enc = d.create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                    label: Some("integrate"),
+                });
+                for _ in 0..pace.dispatches {
+                    let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                        label: Some("integrate"),
+                        timestamp_writes: None,
+                    });
+                    pass.set_pipeline(pipe);
+                    pass.set_bind_group(0, &bind, &[]);
+                    pass.dispatch_workgroups(groups, 1, 1);
+                }
+                enc.copy_buffer_to_buffer(&qbuf, 0, &qread[slot], 0, qsize);
+                self.stats.submitted(pace.dispatches as u64);
+                let index = self.queue.submit(Some(enc.finish()));
+                let (tx, rx) = std::sync::mpsc::channel();
+                qread[slot]
+                    .slice(..)
+                    .map_async(wgpu::MapMode::Read, move |r| {
+                        let _ = tx.send(r);
+                    });
+                in_flight.push_back((index, slot, rx));
+                slot = (slot + 1) % ROUNDS_IN_FLIGHT;
+            }
+            let (index, at, rx) = in_flight.pop_front().expect("a round in flight");
+            let q: GpuQueue = self.mapped(&qread[at], index, rx)?[0];
+            self.stats.completed();
+            let now = std::time::Instant::now();
+            pace.adapt((now - last_seen).as_secs_f64());
+            last_seen = now;
+            if q.done >= n {
+                break;
+            }
+        }
+        // The state: after every round queued so far (queue order).
+        let read_r = buffer("read_real", out_r.size(), staging);
+        let read_u = buffer("read_u32", out_u.size(), staging);
+        let mut enc = d.create_command_encoder(&wgpu::CommandEncoderDescriptor {
+            label: Some("read back"),
+        });
+        enc.copy_buffer_to_buffer(&out_u, 0, &read_u, 0, out_u.size());
+        enc.copy_buffer_to_buffer(&out_r, 0, &read_r, 0, out_r.size());
+        self.stats.submitted(0);
+        let index = self.queue.submit(Some(enc.finish()));
+        let (tu, ru) = std::sync::mpsc::channel();
+        read_u.slice(..).map_async(wgpu::MapMode::Read, move |r| {
+            let _ = tu.send(r);
+        });
+        let (tr, rr) = std::sync::mpsc::channel();
+        read_r.slice(..).map_async(wgpu::MapMode::Read, move |r| {
+            let _ = tr.send(r);
+        });
+        let words = self.mapped(&read_u, index.clone(), ru)?;
+        let reals = self.mapped(&read_r, index, rr)?;
+        self.stats.completed();
+        // Rounds still queued after the last look find an empty queue.
+        for (index, at, rx) in in_flight {
+            self.mapped::<u32>(&qread[at], index, rx)?;
+            self.stats.completed();
+        }
+        Ok((words, reals))
+    }
+
+    /// How this batch is paced: rounds per dispatch and dispatches per round.
+    fn pace(&self, jobs: &[(&Chain, &Solver)]) -> Pace {
+        let pr = self.profile;
+        let most = if self.info.device_type == wgpu::DeviceType::Cpu {
+            dispatch_budget(jobs)
+        } else {
+            u32::MAX
+        };
+        let rounds = pr
+            .rounds
+            .unwrap_or(if pr.timed { FIRST_ROUNDS } else { most })
+            .min(most)
+            .max(1);
+        Pace {
+            rounds,
+            // Enough dispatches that a round is worth a look at the counters.
+            dispatches: if pr.timed {
+                TIMED_DISPATCHES
+            } else {
+                (ROUND_ROUNDS / rounds).clamp(2, 32)
+            },
+            timed: pr.timed,
+            most,
+        }
+    }
+
+    /// Wait for submission `index` and copy a mapped buffer's contents out.
+    fn mapped<T: Pod>(
+        &self,
+        b: &wgpu::Buffer,
+        index: wgpu::SubmissionIndex,
+        rx: std::sync::mpsc::Receiver<Result<(), wgpu::BufferAsyncError>>,
+    ) -> Result<Vec<T>> {
         self.device
-            .poll(wgpu::PollType::wait_indefinitely())
+            .poll(wgpu::PollType::Wait {
+                submission_index: Some(index),
+                timeout: None,
+            })
             .map_err(|e| anyhow!("GPU poll failed: {e}"))?;
         rx.recv()?
             .map_err(|e| anyhow!("GPU read-back failed: {e}"))?;
@@ -565,24 +843,18 @@ impl Backend for Gpu {
         )
     }
 
-    /// One call at a time: every call waits on the device's queue
-    /// (`poll(wait)`), so two would only serialise there (on lavapipe, two
-    /// were 3× slower than one: 3.9 s against 1.3 s on grid100). Overlap of
-    /// host work and device work comes with the GPU pipeline of #17.
+    /// [`Profile::calls`].
     fn max_concurrent_runs(&self) -> usize {
-        1
+        self.profile.calls
     }
 
-    /// A hardware GPU takes 16,384 scenes a call (256 workgroups of 64: two
-    /// per SM of an H100, against 32 at 2,048 — a first step towards filling
-    /// the device, not yet measured on one); a software adapter (lavapipe)
-    /// keeps the CPU's 2,048.
+    /// [`Profile::batch`].
     fn batch_size(&self) -> u64 {
-        if self.info.device_type == wgpu::DeviceType::Cpu {
-            crate::sweep::pipeline::BATCH
-        } else {
-            HARDWARE_BATCH
-        }
+        self.profile.batch
+    }
+
+    fn device_stats(&self) -> Option<DeviceStats> {
+        Some(self.stats.get())
     }
 
     fn run(&self, jobs: &[Job]) -> Result<Vec<Outcome>> {

@@ -41,12 +41,38 @@ header! {
     n_weights,
     /// grading exponent in quarters (graded_step); 0: steps are not graded
     quarters,
-    /// steps per dispatch (driver watchdogs; llvmpipe's loop limit)
-    budget,
     /// FLAG_*: pendulum, damped contacts, air drag, isolated impacts in closed form
     flags,
 }
-const _: () = assert!(std::mem::size_of::<GpuHeader>() == 4 * 8);
+const _: () = assert!(std::mem::size_of::<GpuHeader>() == 4 * 7);
+
+/// The work queue of one batch (binding 4, the shader's `struct Queue`).
+/// Each invocation is a *worker* that takes the next scene (`next`, atomic),
+/// integrates it, and when it ends takes another (slot refill, as the CPU's
+/// SIMD lanes do), for at most `budget` loop rounds (steps, closed-form
+/// impacts, one per scene taken) per dispatch; `done` counts ended scenes.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
+pub struct GpuQueue {
+    pub next: u32,
+    pub done: u32,
+    pub n: u32,
+    pub budget: u32,
+}
+/// `GpuQueue`'s fields in order: name, atomic in the shader, doc.
+pub const QUEUE_FIELDS: &[(&str, bool, &str)] = &[
+    ("next", true, "the next scene to take (may run past n)"),
+    ("done", true, "scenes ended"),
+    ("n", false, "scenes in the batch"),
+    (
+        "budget",
+        false,
+        "loop rounds per worker and dispatch (watchdogs; llvmpipe's loop limit)",
+    ),
+];
+const _: () = assert!(std::mem::size_of::<GpuQueue>() == 4 * 4);
+/// A worker's word in `workers` when it holds no scene.
+pub const NO_SCENE: u32 = u32::MAX;
 
 /// How many values a buffer field holds for a scene of `nb` bodies and `nw`
 /// substep weights.
@@ -264,6 +290,16 @@ pub fn prelude(precision: Precision, max_bodies: usize) -> String {
         let _ = writeln!(s, "    // {}\n    {name}: u32,", doc.trim());
     }
     let _ = writeln!(s, "}}\n");
+    let _ = writeln!(s, "// backend::layout::GpuQueue\nstruct Queue {{");
+    for (name, atomic, doc) in QUEUE_FIELDS {
+        let ty = if *atomic { "atomic<u32>" } else { "u32" };
+        let _ = writeln!(s, "    // {doc}\n    {name}: {ty},");
+    }
+    let _ = writeln!(s, "}}");
+    let _ = writeln!(
+        s,
+        "// A worker holding no scene (layout::NO_SCENE).\nconst NO_SCENE: u32 = {NO_SCENE}u;\n"
+    );
     let _ = writeln!(s, "// Words of a scene in out_u32 (layout::WORDS).");
     for (i, w) in WORDS.iter().enumerate() {
         let _ = writeln!(s, "const W_{}: u32 = {i}u;", w.to_uppercase());

@@ -35,6 +35,22 @@ pub trait Backend: Sync {
     fn max_concurrent_runs(&self) -> usize {
         usize::MAX
     }
+    /// What a device did so far (GPU backends).
+    fn device_stats(&self) -> Option<DeviceStats> {
+        None
+    }
+}
+
+/// What a GPU did during a sweep (the sidecar's `stages_s.gpu`).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct DeviceStats {
+    /// Compute dispatches submitted.
+    pub dispatches: u64,
+    /// Rounds: submissions of dispatches followed by a look at the counters.
+    pub rounds: u64,
+    /// Seconds during which at least one submission was in flight (an upper
+    /// bound of the device's busy time, as the host sees it).
+    pub in_flight_s: f64,
 }
 
 /// Run `jobs`; with `estimate`, also their coarse twins (every step twice as
@@ -85,7 +101,10 @@ pub fn choose(choice: BackendChoice, precision: Precision) -> anyhow::Result<Box
         );
         return Ok(Box::new(cpu::Cpu));
     };
-    let gpu = gpu::Gpu::new(&adapter)?;
+    let mut gpu = gpu::Gpu::new(&adapter)?;
+    if let Some(profile) = gpu::Profile::from_env()? {
+        gpu = gpu.with_profile(profile);
+    }
     if precision == Precision::F64 && !gpu.has_f64() {
         if choice == BackendChoice::Gpu {
             return Err(flag(

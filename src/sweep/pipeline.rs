@@ -26,7 +26,7 @@ use anyhow::Result;
 
 use super::run::Options;
 use super::Sweep;
-use crate::backend::{run_with_estimate, Backend, Job};
+use crate::backend::{run_with_estimate, Backend, DeviceStats, Job};
 use crate::engine::Status;
 use crate::output::parquet_file::{Columns, Segment, SEGMENT_ROWS};
 use crate::output::partial::{Partial, TableFormat};
@@ -54,6 +54,8 @@ pub struct Stages {
     /// Thread-seconds lanes spent waiting for a straggler's rows to be written.
     pub waiting: f64,
     pub lanes: usize,
+    /// What the GPU did (a GPU backend; totals of its lifetime so far).
+    pub device: Option<DeviceStats>,
 }
 
 impl Stages {
@@ -65,7 +67,7 @@ impl Stages {
     }
 
     pub fn json(&self, wall_s: f64) -> serde_json::Value {
-        serde_json::json!({
+        let mut j = serde_json::json!({
             "lanes": self.lanes,
             "jobs": self.jobs,
             "integration": self.integration,
@@ -74,7 +76,16 @@ impl Stages {
             "waiting_for_stragglers": self.waiting,
             "busy_fraction": (self.jobs + self.integration + self.formatting)
                 / (wall_s * self.lanes as f64).max(1e-9),
-        })
+        });
+        if let Some(d) = self.device {
+            j["gpu"] = serde_json::json!({
+                "dispatches": d.dispatches,
+                "rounds": d.rounds,
+                "in_flight": d.in_flight_s,
+                "in_flight_fraction": d.in_flight_s / wall_s.max(1e-9),
+            });
+        }
+        j
     }
 }
 
@@ -96,6 +107,8 @@ struct Done {
 struct Gate {
     free: Mutex<usize>,
     cv: Condvar,
+    /// The backend limits its calls (`Backend::max_concurrent_runs`).
+    limited: bool,
 }
 
 impl Gate {
@@ -143,12 +156,22 @@ fn batch(
     st: &mut Stages,
 ) -> Result<Done> {
     let t = Instant::now();
-    let jobs = (first..end)
-        .map(|p| sweep.job(ids.at(p), &opts.overrides))
-        .collect::<Result<Vec<Job>, _>>()?;
-    let t1 = Instant::now();
-    let outcomes = gate.with(|| run_with_estimate(backend, &jobs, opts.error_estimate))?;
-    drop(jobs);
+    let mut t1 = t;
+    let work = |t1: &mut Instant| -> Result<Vec<crate::engine::Outcome>> {
+        let jobs = (first..end)
+            .map(|p| sweep.job(ids.at(p), &opts.overrides))
+            .collect::<Result<Vec<Job>, _>>()?;
+        *t1 = Instant::now();
+        run_with_estimate(backend, &jobs, opts.error_estimate)
+    };
+    // A backend that takes few calls at once (a GPU): the lanes waiting for
+    // it build their jobs only once let in, so no more than that many
+    // batches of jobs are held, whatever the thread count.
+    let outcomes = if gate.limited {
+        gate.with(|| work(&mut t1))?
+    } else {
+        work(&mut t1)?
+    };
     let t2 = Instant::now();
     let shape = sweep.shape();
     let ok = outcomes.iter().filter(|o| o.status == Status::Ok).count() as u64;
@@ -230,6 +253,7 @@ pub fn stream(
     let gate = Gate {
         free: Mutex::new(backend.max_concurrent_runs().max(1)),
         cv: Condvar::new(),
+        limited: backend.max_concurrent_runs() < usize::MAX,
     };
     let next = AtomicU64::new(0);
     // Batches written so far (the writer's position), and a stop signal.
@@ -370,6 +394,7 @@ pub fn stream(
             .map_err(|_| anyhow::anyhow!("the CSV writer thread panicked"))??;
         let mut st = *totals.lock().unwrap_or_else(|e| e.into_inner());
         st.writing = writing;
+        st.device = backend.device_stats();
         Ok((ok, done, out, st))
     })
 }

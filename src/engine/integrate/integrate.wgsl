@@ -11,11 +11,15 @@
 // f64 pow returns garbage on lavapipe without any error, and SPIR-V has no f64
 // sin or exp: pendulum_sin and decay are polynomials, the same on both sides.
 //
-// A scene may need 10^5 steps; one dispatch runs at most `budget` steps of a
-// scene (driver watchdogs on real GPUs; llvmpipe silently cuts loops short once
-// an invocation has run about 2^16 loop iterations in all, leaving garbage).
-// The state lives in out_real/out_u32 between dispatches and the host
-// dispatches again until no scene is running.
+// Invocations are workers (layout::GpuQueue): a worker takes the next scene of
+// the batch, integrates it, and when it ends takes another, so a finished
+// scene's slot is refilled at once instead of idling beside a long one. A
+// scene may need 10^5 steps; one dispatch runs at most `queue.budget` loop
+// rounds per worker (driver watchdogs on real GPUs; llvmpipe silently cuts
+// loops short once an invocation has run about 2^16 loop iterations in all,
+// leaving garbage). A scene's state lives in out_real/out_u32 between
+// dispatches, a worker's scene in `workers`, and the host dispatches again
+// until `queue.done` counts every scene.
 
 // false: a pipeline for elastic free lines only, without the pendulum, damping
 // and drag terms (engine::integrate's TERMS; set by the host per batch).
@@ -26,6 +30,9 @@ override TERMS: bool = true;
 @group(0) @binding(2) var<storage, read_write> out_real: array<real>;
 // end (END_RUNNING while integrating), steps, contacts of each scene
 @group(0) @binding(3) var<storage, read_write> out_u32: array<u32>;
+@group(0) @binding(4) var<storage, read_write> queue: Queue;
+// the scene each worker holds between dispatches, or NO_SCENE
+@group(0) @binding(5) var<storage, read_write> workers: array<u32>;
 
 var<private> v: array<real, MAX_BALLS>;
 var<private> d: array<real, MAX_BALLS>;
@@ -683,14 +690,14 @@ fn finish(i: u32, end: u32) {
     out_u32[N_WORDS * i + W_CONTACTS] = contacts;
 }
 
-// engine::integrate::integrate — at most `budget` steps of scene i.
-fn integrate(i: u32) {
-    if (out_u32[N_WORDS * i + W_END] != END_RUNNING) {
-        return;
-    }
+// engine::integrate::integrate — at most `left` loop rounds of scene i, from
+// the state it reached; the state back to the buffers. Returns the rounds
+// spent, one more for the load (≥ 1 however soon the scene ends).
+fn integrate(i: u32, left: u32) -> u32 {
     load(i);
     var end = END_RUNNING;
-    for (var it = 0u; it < hd.budget; it++) {
+    var it = 0u;
+    for (; it < left; it++) {
         let r = ready();
         if (r == FLY_AGAIN) {
             continue;
@@ -707,12 +714,39 @@ fn integrate(i: u32) {
         }
     }
     finish(i, end);
+    return it + 1u;
 }
 
+// A worker: the scene it holds, then the next ones of the queue, until the
+// dispatch's rounds are spent or the queue is empty.
 @compute @workgroup_size(64)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
-    if (gid.x >= arrayLength(&headers)) {
+    let w = gid.x;
+    if (w >= arrayLength(&workers)) {
         return;
     }
-    integrate(gid.x);
+    var i = workers[w];
+    var left = queue.budget;
+    loop {
+        if (left == 0u) {
+            break;
+        }
+        if (i == NO_SCENE) {
+            if (atomicLoad(&queue.next) >= queue.n) {
+                break;
+            }
+            i = atomicAdd(&queue.next, 1u);
+            if (i >= queue.n) {
+                i = NO_SCENE;
+                break;
+            }
+        }
+        left -= min(integrate(i, left), left);
+        if (out_u32[N_WORDS * i + W_END] == END_RUNNING) {
+            break;
+        }
+        atomicAdd(&queue.done, 1u);
+        i = NO_SCENE;
+    }
+    workers[w] = i;
 }
