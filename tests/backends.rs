@@ -588,6 +588,31 @@ fn gpu_size_classes_match_cpu() {
         })
         .collect();
     let (c, d) = (Cpu.run(&jobs).unwrap(), g.run(&jobs).unwrap());
+    // Groups on their own threads, chains above 16 bodies on the CPU engine
+    // beside them: those get the CPU's outcomes, the others the GPU's, bit
+    // for bit, and the 8 routed are counted.
+    let adapter = find_adapter(Want::Any).expect("the adapter gpu() found");
+    let split = Gpu::new(&adapter).expect("GPU context").with_profile(
+        hertz_cradle::backend::gpu::Profile {
+            calls: 4,
+            cpu_above: Some(16),
+            ..g.profile()
+        },
+    );
+    let e = split.run(&jobs).unwrap();
+    for (((j, x), y), z) in jobs.iter().zip(&c).zip(&d).zip(&e) {
+        let Job::Run { chain, .. } = j else {
+            unreachable!()
+        };
+        let want = if chain.n_balls > 16 { x } else { y };
+        assert_eq!(
+            format!("{want:?}"),
+            format!("{z:?}"),
+            "{} balls",
+            chain.n_balls
+        );
+    }
+    assert_eq!(split.device_stats().unwrap().cpu_scenes, 8);
     for ((j, x), y) in jobs.iter().zip(&c).zip(&d) {
         let Job::Run { chain, solver } = j else {
             unreachable!()

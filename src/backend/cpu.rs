@@ -1,9 +1,7 @@
 //! The CPU backend: every scene of a batch on the rayon pool.
 
-use rayon::prelude::*;
-
 use super::{Backend, Job};
-use crate::engine::{simulate_batch, Outcome};
+use crate::engine::{simulate_batch_parallel, Outcome};
 
 pub struct Cpu;
 
@@ -17,27 +15,19 @@ impl Backend for Cpu {
     }
 
     fn run(&self, jobs: &[Job]) -> anyhow::Result<Vec<Outcome>> {
-        // Chunks small enough to share out uneven scenes between the
-        // threads, large enough to fill the lanes of `simulate_batch`.
-        let chunk = (jobs.len() / (8 * rayon::current_num_threads())).clamp(8, 256);
+        let runs: Vec<_> = jobs
+            .iter()
+            .filter_map(|j| match j {
+                Job::Run { chain, solver } => Some((chain, solver)),
+                Job::Invalid { .. } => None,
+            })
+            .collect();
+        let mut done = simulate_batch_parallel(&runs).into_iter();
         Ok(jobs
-            .par_chunks(chunk)
-            .flat_map_iter(|chunk| {
-                let runs: Vec<_> = chunk
-                    .iter()
-                    .filter_map(|j| match j {
-                        Job::Run { chain, solver } => Some((chain, solver)),
-                        Job::Invalid { .. } => None,
-                    })
-                    .collect();
-                let mut done = simulate_batch(&runs).into_iter();
-                chunk
-                    .iter()
-                    .map(|j| match j {
-                        Job::Run { .. } => done.next().expect("one outcome per run"),
-                        Job::Invalid { n_balls } => Outcome::invalid(*n_balls),
-                    })
-                    .collect::<Vec<_>>()
+            .iter()
+            .map(|j| match j {
+                Job::Run { .. } => done.next().expect("one outcome per run"),
+                Job::Invalid { n_balls } => Outcome::invalid(*n_balls),
             })
             .collect())
     }

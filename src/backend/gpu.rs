@@ -61,28 +61,35 @@ pub struct Profile {
     pub rounds: Option<u32>,
     /// Double or halve the rounds per dispatch to keep a round in `ROUND_S`.
     pub timed: bool,
+    /// Chains of a size class above this run on the CPU engine, beside the
+    /// device: one GPU thread integrates a whole chain, so a 64-ball chain's
+    /// 10^5 steps take seconds there however idle the device is, and its
+    /// 64-body arrays spill to memory.
+    pub cpu_above: Option<usize>,
 }
 
 impl Profile {
     /// 16,384 scenes a call, four calls at once, a quarter as many workers
     /// as scenes (16,384 workers and 65,536 scenes resident; not yet tuned
-    /// on a GPU), paced by time.
+    /// on a GPU), paced by time; chains of more than 32 bodies on the CPU.
     pub const HARDWARE: Profile = Profile {
         batch: 16_384,
         calls: 4,
         scenes_per_worker: 4,
         rounds: None,
         timed: true,
+        cpu_above: Some(32),
     };
     /// lavapipe runs on the cores the lanes use: the CPU's batch, one call at
     /// a time (two at once were 3× slower on grid100), a worker per scene,
-    /// rounds by the loop limit.
+    /// rounds by the loop limit, every chain in the shader.
     pub const SOFTWARE: Profile = Profile {
         batch: crate::sweep::pipeline::BATCH,
         calls: 1,
         scenes_per_worker: 1,
         rounds: None,
         timed: false,
+        cpu_above: None,
     };
 
     /// `CRADLE_GPU_PROFILE`'s value, if set.
@@ -158,6 +165,14 @@ impl Tracker {
         }
     }
 
+    fn on_cpu(&self, scenes: u64) {
+        self.inner
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .0
+            .cpu_scenes += scenes;
+    }
+
     fn get(&self) -> DeviceStats {
         self.inner.lock().unwrap_or_else(|e| e.into_inner()).0
     }
@@ -188,6 +203,8 @@ pub fn size_class(n_bodies: usize) -> usize {
 
 /// (f64, terms, size class).
 type PipeKey = (bool, bool, usize);
+/// Outcomes with their places in a batch.
+type Placed = Vec<(usize, Outcome)>;
 
 /// Loop iterations of one step of `ch` in `n_weights` substeps (the
 /// pendulum's sine is a 10-term loop per body, air drag's decay up to ~25),
@@ -875,16 +892,56 @@ impl Backend for Gpu {
                 size_class(ch.n_bodies()),
             )
         });
-        for ((f64, terms, class), idx) in groups {
+        // Long chains on the CPU engine (a profile's `cpu_above`), the rest
+        // on the device: one thread per pipeline group when the profile
+        // takes calls at once (each waits only on its own submissions, so a
+        // group of costly chains does not hold the others back), in turn on
+        // a software adapter.
+        let (cpu, gpu): (Vec<_>, Vec<_>) = groups
+            .into_iter()
+            .partition(|((_, _, class), _)| self.profile.cpu_above.is_some_and(|m| *class > m));
+        let group = |((f64, terms, class), idx): ((bool, bool, usize), Vec<usize>)| {
             let batch: Vec<(&Chain, &Solver)> = idx.iter().map(|&k| runs_in[k]).collect();
             let runs = if f64 {
                 self.runs::<f64>(&batch, terms, class)?
             } else {
                 self.runs::<f32>(&batch, terms, class)?
             };
-            for ((k, (ch, _)), (run, dt)) in idx.into_iter().zip(batch).zip(runs) {
-                out[idx_of[k]] = Some(Outcome::from_run(ch, &run, dt));
+            Ok(idx
+                .into_iter()
+                .zip(batch)
+                .zip(runs)
+                .map(|((k, (ch, _)), (run, dt))| (k, Outcome::from_run(ch, &run, dt)))
+                .collect::<Vec<_>>())
+        };
+        let cpu_idx: Vec<usize> = cpu.into_iter().flat_map(|(_, idx)| idx).collect();
+        let (done, on_cpu) = std::thread::scope(|sc| -> Result<(Placed, Vec<Outcome>)> {
+            let group = &group;
+            let (handles, mut done): (Vec<_>, Vec<Result<Placed>>) = if self.profile.calls > 1 {
+                let h = gpu
+                    .into_iter()
+                    .map(|g| sc.spawn(move || group(g)))
+                    .collect();
+                (h, vec![])
+            } else {
+                (vec![], gpu.into_iter().map(group).collect())
+            };
+            // On this (pool) thread, beside the device.
+            let on_cpu = crate::engine::simulate_batch_parallel(
+                &cpu_idx.iter().map(|&k| runs_in[k]).collect::<Vec<_>>(),
+            );
+            for h in handles {
+                done.push(
+                    h.join()
+                        .map_err(|_| anyhow!("a GPU group's thread panicked"))?,
+                );
             }
+            let done = done.into_iter().collect::<Result<Vec<_>>>()?;
+            Ok((done.into_iter().flatten().collect(), on_cpu))
+        })?;
+        self.stats.on_cpu(cpu_idx.len() as u64);
+        for (k, o) in done.into_iter().chain(cpu_idx.into_iter().zip(on_cpu)) {
+            out[idx_of[k]] = Some(o);
         }
         Ok(out
             .into_iter()

@@ -51,6 +51,8 @@ pub struct DeviceStats {
     /// Seconds during which at least one submission was in flight (an upper
     /// bound of the device's busy time, as the host sees it).
     pub in_flight_s: f64,
+    /// Scenes the backend ran on the CPU engine instead (`Profile::cpu_above`).
+    pub cpu_scenes: u64,
 }
 
 /// Run `jobs`; with `estimate`, also their coarse twins (every step twice as

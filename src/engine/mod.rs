@@ -83,6 +83,16 @@ pub fn simulate_batch(jobs: &[(&Chain, &Solver)]) -> Vec<Outcome> {
         .collect()
 }
 
+/// [`simulate_batch`] on the rayon pool, in chunks small enough to share
+/// out uneven scenes between the threads, large enough to fill the lanes.
+pub fn simulate_batch_parallel(jobs: &[(&Chain, &Solver)]) -> Vec<Outcome> {
+    use rayon::prelude::*;
+    let chunk = (jobs.len() / (8 * rayon::current_num_threads())).clamp(8, 256);
+    jobs.par_chunks(chunk)
+        .flat_map_iter(simulate_batch)
+        .collect()
+}
+
 /// Job routing, one definition for every backend: the Hertz runs of `jobs`
 /// (indices, in order) grouped by `key` (precision, and whatever else picks
 /// a kernel: the GPU adds `TERMS` and the size class). Comparison models are

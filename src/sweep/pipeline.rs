@@ -83,6 +83,7 @@ impl Stages {
                 "rounds": d.rounds,
                 "in_flight": d.in_flight_s,
                 "in_flight_fraction": d.in_flight_s / wall_s.max(1e-9),
+                "scenes_on_cpu": d.cpu_scenes,
             });
         }
         j
