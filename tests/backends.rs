@@ -751,3 +751,35 @@ fn gpu_sweep_with_concurrent_calls_writes_the_cpu_bytes() {
     let st = hw.device_stats().unwrap();
     assert!(st.rounds >= 20 && st.dispatches >= 4 * st.rounds, "{st:?}");
 }
+
+/// `CRADLE_GPU_PROFILE` text: a base profile, then key=value changes; a bad
+/// key, value or range says what is allowed.
+#[test]
+fn gpu_profiles_parse_with_clear_errors() {
+    use hertz_cradle::backend::gpu::Profile;
+    assert_eq!(Profile::parse("software").unwrap(), Profile::SOFTWARE);
+    let p = Profile::parse("hardware, batch=32768,calls=8,cpu_above=none,rounds=64,timed=false")
+        .unwrap();
+    assert_eq!(
+        p,
+        Profile {
+            batch: 32768,
+            calls: 8,
+            cpu_above: None,
+            rounds: Some(64),
+            timed: false,
+            ..Profile::HARDWARE
+        }
+    );
+    for (bad, says) in [
+        ("fast", "allowed values are hardware and software"),
+        ("hardware,calls", "expected key=value"),
+        ("hardware,calls=0", "calls=0: allowed 1..=64"),
+        ("hardware,batch=many", "batch=many: allowed 1..=1048576"),
+        ("hardware,speed=2", "unknown key \"speed\"; keys: batch"),
+        ("software,timed=yes", "allowed true or false"),
+    ] {
+        let e = Profile::parse(bad).unwrap_err().to_string();
+        assert!(e.contains(says), "{bad}: {e}");
+    }
+}

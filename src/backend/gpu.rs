@@ -92,18 +92,56 @@ impl Profile {
         cpu_above: None,
     };
 
-    /// `CRADLE_GPU_PROFILE`'s value, if set.
+    /// `CRADLE_GPU_PROFILE`'s value, if set: `hardware` or `software`, then
+    /// optionally `,key=value` pairs that change it (for tuning on a device
+    /// without a rebuild), e.g. `hardware,batch=32768,calls=8,cpu_above=16`.
     pub fn from_env() -> Result<Option<Profile>> {
         match std::env::var("CRADLE_GPU_PROFILE") {
             Err(_) => Ok(None),
-            Ok(v) => match v.as_str() {
-                "hardware" => Ok(Some(Profile::HARDWARE)),
-                "software" => Ok(Some(Profile::SOFTWARE)),
-                other => {
-                    bail!("CRADLE_GPU_PROFILE={other:?}: allowed values are hardware and software")
-                }
-            },
+            Ok(v) => Profile::parse(&v)
+                .map(Some)
+                .map_err(|e| anyhow!("CRADLE_GPU_PROFILE={v:?}: {e}")),
         }
+    }
+
+    /// A profile from text (see [`Profile::from_env`]).
+    pub fn parse(text: &str) -> Result<Profile> {
+        let mut parts = text.split(',').map(str::trim);
+        let mut p = match parts.next().unwrap_or("") {
+            "hardware" => Profile::HARDWARE,
+            "software" => Profile::SOFTWARE,
+            other => {
+                bail!("{other:?}: allowed values are hardware and software (then ,key=value pairs)")
+            }
+        };
+        const KEYS: &str = "batch (1..=1048576), calls (1..=64), scenes_per_worker (1..=1024), rounds (1..=65536 or auto), timed (true|false), cpu_above (2..=64 or none)";
+        for kv in parts {
+            let Some((k, v)) = kv.split_once('=') else {
+                bail!("{kv:?}: expected key=value; keys: {KEYS}");
+            };
+            let int = |lo: u64, hi: u64| -> Result<u64> {
+                v.parse::<u64>()
+                    .ok()
+                    .filter(|n| (lo..=hi).contains(n))
+                    .ok_or_else(|| anyhow!("{k}={v}: allowed {lo}..={hi}"))
+            };
+            match k {
+                "batch" => p.batch = int(1, 1 << 20)?,
+                "calls" => p.calls = int(1, 64)? as usize,
+                "scenes_per_worker" => p.scenes_per_worker = int(1, 1024)? as u32,
+                "rounds" if v == "auto" => p.rounds = None,
+                "rounds" => p.rounds = Some(int(1, 65_536)? as u32),
+                "timed" => {
+                    p.timed = v
+                        .parse()
+                        .map_err(|_| anyhow!("{k}={v}: allowed true or false"))?
+                }
+                "cpu_above" if v == "none" => p.cpu_above = None,
+                "cpu_above" => p.cpu_above = Some(int(2, 64)? as usize),
+                _ => bail!("unknown key {k:?}; keys: {KEYS}"),
+            }
+        }
+        Ok(p)
     }
 }
 
