@@ -708,7 +708,7 @@ fn gpu_matches_cpu_on_the_stress_slice() {
 
 /// A sweep through the pipeline on the hardware profile with small batches
 /// (512 scenes: 20 batches, up to four calls on the device at once, each
-/// waiting only on its own submissions, a worker per four scenes, rounds
+/// waiting only on its own submissions, a worker per two scenes, rounds
 /// paced by time): the committed CPU table byte for byte.
 #[test]
 fn gpu_sweep_with_concurrent_calls_writes_the_cpu_bytes() {

@@ -1,7 +1,9 @@
-//! The GPU backend: `src/engine/integrate/integrate.wgsl` through wgpu, one invocation per
-//! scene. The context (device, pipelines, bind-group layout) is built once per
-//! sweep and reused for every batch; device creation is kept apart from the
-//! work so tests can bring their own adapter.
+//! The GPU backend: `src/engine/integrate/integrate.wgsl` through wgpu. Each
+//! invocation is a worker that takes scenes from the batch's queue in turn
+//! (`layout::GpuQueue`); how batches use the device is a [`Profile`]. The
+//! context (device, pipelines, bind-group layout) is built once per sweep and
+//! reused for every batch; device creation is kept apart from the work so
+//! tests can bring their own adapter.
 
 use std::borrow::Cow;
 use std::collections::HashMap;
@@ -69,13 +71,14 @@ pub struct Profile {
 }
 
 impl Profile {
-    /// 16,384 scenes a call, four calls at once, a quarter as many workers
-    /// as scenes (16,384 workers and 65,536 scenes resident; not yet tuned
-    /// on a GPU), paced by time; chains of more than 32 bodies on the CPU.
+    /// 8,192 scenes a call, four calls at once, half as many workers as
+    /// scenes (16,384 workers and 32,768 scenes resident; not yet tuned on a
+    /// GPU; host memory ~35 MB a call), paced by time; chains of more than 32
+    /// bodies on the CPU.
     pub const HARDWARE: Profile = Profile {
-        batch: 16_384,
+        batch: 8_192,
         calls: 4,
-        scenes_per_worker: 4,
+        scenes_per_worker: 2,
         rounds: None,
         timed: true,
         cpu_above: Some(32),
@@ -622,7 +625,7 @@ impl Gpu {
             state.extend([0.0, -1.0, -1.0, 0.0, 0.0, ch.x0[0], 0.0, 0.0].map(R::of));
             assert_eq!(state.len() - s0, layout::len(STATE, nb, nw));
         }
-        let (words, reals) = self.integrate::<R>(pipe, jobs, &headers, &params, &state)?;
+        let (words, reals) = self.integrate::<R>(pipe, jobs, &headers, params, state)?;
         Ok(headers
             .iter()
             .zip(jobs)
@@ -666,7 +669,7 @@ impl Gpu {
     }
 
     /// Run the packed batch to the end of every scene on the device: workers
-    /// (one per scene on a software adapter, a quarter as many on a hardware
+    /// (one per scene on a software adapter, half as many on a hardware
     /// GPU, refilled from the queue as their scenes end), rounds of dispatches
     /// with the next round submitted before the last one's queue counters are
     /// read (the device never waits for the host), rounds per dispatch by
@@ -677,8 +680,8 @@ impl Gpu {
         pipe: &wgpu::ComputePipeline,
         jobs: &[(&Chain, &Solver)],
         headers: &[GpuHeader],
-        params: &[R],
-        state: &[R],
+        params: Vec<R>,
+        state: Vec<R>,
     ) -> Result<(Vec<u32>, Vec<R>)> {
         let n = headers.len() as u32;
         let d = &self.device;
@@ -710,8 +713,10 @@ impl Gpu {
         let readable = storage | wgpu::BufferUsages::COPY_SRC;
         let staging = wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST;
         let hdr = init("headers", bytemuck::cast_slice(headers), storage);
-        let par = init("params", bytemuck::cast_slice(params), storage);
-        let out_r = init("state_real", bytemuck::cast_slice(state), readable);
+        let par = init("params", bytemuck::cast_slice(&params), storage);
+        let out_r = init("state_real", bytemuck::cast_slice(&state), readable);
+        // On the device now: the host copies go (bounded memory per call).
+        drop((params, state));
         let out_u = init("state_u32", bytemuck::cast_slice(&words0), readable);
         let queue0 = GpuQueue {
             next: 0,
@@ -991,5 +996,43 @@ impl Backend for Gpu {
                 (None, Job::Run { chain, solver }) => simulate_chain(chain, solver, &mut Silent),
             })
             .collect())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Timed pacing doubles under 2 ms a round, halves over 16 ms, stays in
+    /// 16..=65,536 and under a software adapter's loop limit; untimed never moves.
+    #[test]
+    fn timed_pace_doubles_halves_and_keeps_its_bounds() {
+        let pace = |rounds, timed, most| Pace {
+            rounds,
+            dispatches: TIMED_DISPATCHES,
+            timed,
+            most,
+        };
+        let mut p = pace(256, true, u32::MAX);
+        p.adapt(0.001);
+        assert_eq!(p.rounds, 512);
+        p.adapt(0.010);
+        assert_eq!(p.rounds, 512);
+        p.adapt(0.050);
+        assert_eq!(p.rounds, 256);
+        for _ in 0..30 {
+            p.adapt(0.0001);
+        }
+        assert_eq!(p.rounds, 65_536);
+        for _ in 0..30 {
+            p.adapt(1.0);
+        }
+        assert_eq!(p.rounds, 16);
+        let mut q = pace(40, true, 57);
+        q.adapt(0.0);
+        assert_eq!(q.rounds, 57);
+        let mut r = pace(40, false, 57);
+        r.adapt(0.0);
+        assert_eq!(r.rounds, 40);
     }
 }

@@ -156,22 +156,23 @@ fn batch(
     (first, end): (u64, u64),
     st: &mut Stages,
 ) -> Result<Done> {
-    let t = Instant::now();
-    let mut t1 = t;
-    let work = |t1: &mut Instant| -> Result<Vec<crate::engine::Outcome>> {
+    let (mut t, mut t1) = (Instant::now(), Instant::now());
+    let mut work = || -> Result<Vec<crate::engine::Outcome>> {
+        t = Instant::now();
         let jobs = (first..end)
             .map(|p| sweep.job(ids.at(p), &opts.overrides))
             .collect::<Result<Vec<Job>, _>>()?;
-        *t1 = Instant::now();
+        t1 = Instant::now();
         run_with_estimate(backend, &jobs, opts.error_estimate)
     };
     // A backend that takes few calls at once (a GPU): the lanes waiting for
     // it build their jobs only once let in, so no more than that many
-    // batches of jobs are held, whatever the thread count.
+    // batches of jobs are held, whatever the thread count. (Time spent
+    // waiting to be let in is in no stage: the lane is idle.)
     let outcomes = if gate.limited {
-        gate.with(|| work(&mut t1))?
+        gate.with(work)?
     } else {
-        work(&mut t1)?
+        work()?
     };
     let t2 = Instant::now();
     let shape = sweep.shape();
