@@ -387,17 +387,21 @@ fn shader_and_host_agree_on_the_boundary() {
     for p in [Precision::F32, Precision::F64] {
         let src = shader_source(p);
         let module = naga::front::wgsl::parse_str(&src).unwrap();
+        // A struct of the shader: its members and size.
+        let structure = |name: &str| {
+            module
+                .types
+                .iter()
+                .find_map(|(_, t)| match (&t.name, &t.inner) {
+                    (Some(n), naga::TypeInner::Struct { members, span }) if n == name => {
+                        Some((members.clone(), *span))
+                    }
+                    _ => None,
+                })
+                .unwrap_or_else(|| panic!("struct {name} in the shader"))
+        };
         // struct Header: the same members at the same offsets, the same size.
-        let (members, span) = module
-            .types
-            .iter()
-            .find_map(|(_, t)| match (&t.name, &t.inner) {
-                (Some(n), naga::TypeInner::Struct { members, span }) if n == "Header" => {
-                    Some((members.clone(), *span))
-                }
-                _ => None,
-            })
-            .expect("struct Header in the shader");
+        let (members, span) = structure("Header");
         assert_eq!(span as usize, std::mem::size_of::<GpuHeader>());
         let got: Vec<(String, usize)> = members
             .iter()
@@ -409,16 +413,7 @@ fn shader_and_host_agree_on_the_boundary() {
             .collect();
         assert_eq!(got, want, "{}", p.name());
         // struct Queue: GpuQueue's fields at its offsets, the atomic ones atomic.
-        let (members, span) = module
-            .types
-            .iter()
-            .find_map(|(_, t)| match (&t.name, &t.inner) {
-                (Some(n), naga::TypeInner::Struct { members, span }) if n == "Queue" => {
-                    Some((members.clone(), *span))
-                }
-                _ => None,
-            })
-            .expect("struct Queue in the shader");
+        let (members, span) = structure("Queue");
         assert_eq!(span as usize, std::mem::size_of::<GpuQueue>());
         let queue_offsets = [
             ("next", offset_of!(GpuQueue, next)),

@@ -411,9 +411,8 @@ fn example_outputs_are_byte_identical_to_the_pinned_ones() {
 fn gpu_sweep_writes_the_cpu_bytes_with_either_profile() {
     let dir = tempfile::tempdir().unwrap();
     let want = fs::read("results/glue_launch.csv").unwrap();
-    for profile in ["software", "hardware"] {
-        let out = dir.path().join(format!("{profile}.csv"));
-        let o = cradle()
+    let gpu_sweep = |out: &std::path::Path, profile: &str| {
+        cradle()
             .args([
                 "sweep",
                 "examples/glue_launch.toml",
@@ -421,10 +420,14 @@ fn gpu_sweep_writes_the_cpu_bytes_with_either_profile() {
                 "gpu",
                 "--out",
             ])
-            .arg(&out)
+            .arg(out)
             .env("CRADLE_GPU_PROFILE", profile)
             .output()
-            .unwrap();
+            .unwrap()
+    };
+    for profile in ["software", "hardware"] {
+        let out = dir.path().join(format!("{profile}.csv"));
+        let o = gpu_sweep(&out, profile);
         if !o.status.success() {
             let err = String::from_utf8_lossy(&o.stderr);
             if err.contains("no GPU adapter")
@@ -451,18 +454,7 @@ fn gpu_sweep_writes_the_cpu_bytes_with_either_profile() {
             "{profile}"
         );
     }
-    let o = cradle()
-        .args([
-            "sweep",
-            "examples/glue_launch.toml",
-            "--backend",
-            "gpu",
-            "--out",
-        ])
-        .arg(dir.path().join("bad.csv"))
-        .env("CRADLE_GPU_PROFILE", "fast")
-        .output()
-        .unwrap();
+    let o = gpu_sweep(&dir.path().join("bad.csv"), "fast");
     assert!(!o.status.success());
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(
