@@ -7,6 +7,7 @@ Playwright for Python (executable_path: no browser download).
 Needs /usr/bin/chromium (apt-get install chromium). Writes the page's
 screenshot to results/explorer.png (EXPLORER_SCREENSHOT overrides)."""
 
+import contextlib
 import json
 import os
 import shutil
@@ -41,33 +42,42 @@ def free_port():
         return s.getsockname()[1]
 
 
+@contextlib.contextmanager
+def explorer(d, name, spec_text):
+    """Sweep `spec_text` into d/NAME.csv on the CPU, serve it with `cradle
+    explore` (run in d) on a free port, wait until it answers; yields the
+    page's URL and the table, and stops the server after."""
+    spec = d / f"{name}.toml"
+    spec.write_text(spec_text)
+    table = d / f"{name}.csv"
+    subprocess.run([cradle_bin(), "sweep", spec, "--out", table, "--backend", "cpu"], check=True,
+                   capture_output=True, cwd=d)
+    port = free_port()
+    p = subprocess.Popen([cradle_bin(), "explore", table.name, "--port", str(port)], cwd=d,
+                         stderr=subprocess.PIPE, text=True)
+    url = f"http://127.0.0.1:{port}/"
+    try:
+        for _ in range(200):
+            try:
+                urllib.request.urlopen(url + "api/meta", timeout=1)
+                break
+            except (urllib.error.URLError, ConnectionError):
+                time.sleep(0.05)
+        yield url, table
+    finally:
+        p.terminate()
+        p.wait(timeout=10)
+
+
 @pytest.fixture(scope="module")
 def server(tmp_path_factory):
     if not Path(CHROMIUM).exists():
         pytest.skip(f"no browser at {CHROMIUM}: apt-get install chromium")
-    d = tmp_path_factory.mktemp("explore")
-    spec = d / "map.toml"
-    spec.write_text(
-        "[scene]\nballs = 5\nvelocity = [1.0, 0, 0, 0, 0]\n"
-        "[[axis]]\nparam = \"mass[2]\"\nlogspace = [0.0064, 0.64, 60]\n"
-        "[[axis]]\nparam = \"gap\"\nlinspace = [0.0, 2e-5, 40]\n"
-    )
-    table = d / "map.csv"
-    subprocess.run([cradle_bin(), "sweep", spec, "--out", table, "--backend", "cpu"], check=True,
-                   capture_output=True, cwd=d)
-    port = free_port()
-    p = subprocess.Popen([cradle_bin(), "explore", "map.csv", "--port", str(port)], cwd=d,
-                         stderr=subprocess.PIPE, text=True)
-    url = f"http://127.0.0.1:{port}/"
-    for _ in range(200):
-        try:
-            urllib.request.urlopen(url + "api/meta", timeout=1)
-            break
-        except (urllib.error.URLError, ConnectionError):
-            time.sleep(0.05)
-    yield url, table
-    p.terminate()
-    p.wait(timeout=10)
+    with explorer(tmp_path_factory.mktemp("explore"), "map",
+                  "[scene]\nballs = 5\nvelocity = [1.0, 0, 0, 0, 0]\n"
+                  "[[axis]]\nparam = \"mass[2]\"\nlogspace = [0.0064, 0.64, 60]\n"
+                  "[[axis]]\nparam = \"gap\"\nlinspace = [0.0, 2e-5, 40]\n") as served:
+        yield served
 
 
 def get(url):
@@ -169,26 +179,11 @@ def test_a_sampled_table_is_drawn_as_points_and_a_click_opens_the_nearest(tmp_pa
 
     if not Path(CHROMIUM).exists():
         pytest.skip(f"no browser at {CHROMIUM}: apt-get install chromium")
-    spec = tmp_path / "lhs.toml"
-    spec.write_text(
-        "[scene]\nballs = 5\nvelocity = [1.0, 0, 0, 0, 0]\n"
-        "[sample]\ndesign = \"lhs\"\npoints = 300\nseed = 2\n"
-        "[[axis]]\nparam = \"mass[2]\"\nrange = [0.0064, 0.64]\nscale = \"log\"\n"
-        "[[axis]]\nparam = \"gap\"\nrange = [0.0, 2e-5]\n"
-    )
-    subprocess.run([cradle_bin(), "sweep", spec, "--out", tmp_path / "lhs.csv", "--backend", "cpu"],
-                   check=True, capture_output=True, cwd=tmp_path)
-    port = free_port()
-    p = subprocess.Popen([cradle_bin(), "explore", "lhs.csv", "--port", str(port)], cwd=tmp_path,
-                         stderr=subprocess.PIPE, text=True)
-    url = f"http://127.0.0.1:{port}/"
-    try:
-        for _ in range(200):
-            try:
-                urllib.request.urlopen(url + "api/meta", timeout=1)
-                break
-            except (urllib.error.URLError, ConnectionError):
-                time.sleep(0.05)
+    spec = ("[scene]\nballs = 5\nvelocity = [1.0, 0, 0, 0, 0]\n"
+            "[sample]\ndesign = \"lhs\"\npoints = 300\nseed = 2\n"
+            "[[axis]]\nparam = \"mass[2]\"\nrange = [0.0064, 0.64]\nscale = \"log\"\n"
+            "[[axis]]\nparam = \"gap\"\nrange = [0.0, 2e-5]\n")
+    with explorer(tmp_path, "lhs", spec) as (url, _):
         with sync_playwright() as pw:
             browser = pw.chromium.launch(executable_path=CHROMIUM, args=ARGS)
             page = browser.new_page(viewport={"width": 1400, "height": 900})
@@ -208,6 +203,3 @@ def test_a_sampled_table_is_drawn_as_points_and_a_click_opens_the_nearest(tmp_pa
             page.get_by_test_id("trace-plot").wait_for(timeout=20_000)
             browser.close()
         assert not errors, errors
-    finally:
-        p.terminate()
-        p.wait(timeout=10)
