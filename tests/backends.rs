@@ -8,7 +8,7 @@ mod common;
 use std::sync::OnceLock;
 
 use hertz_cradle::backend::cpu::Cpu;
-use hertz_cradle::backend::gpu::{find_adapter, shader_source, Gpu, Want};
+use hertz_cradle::backend::gpu::{find_adapter, shader_source, Gpu, Profile, Want};
 use hertz_cradle::backend::{Backend, Job};
 use hertz_cradle::engine::{Chain, Outcome, Overrides, Solver, Status};
 use hertz_cradle::scene::{Method, Precision, Scene};
@@ -26,6 +26,19 @@ fn gpu() -> Option<&'static Gpu> {
         }
     })
     .as_ref()
+}
+
+/// A second context on gpu()'s adapter using the device as `profile` says.
+fn gpu_with(profile: Profile) -> Gpu {
+    let adapter = find_adapter(Want::Any).expect("the adapter gpu() found");
+    Gpu::new(&adapter)
+        .expect("GPU context")
+        .with_profile(profile)
+}
+
+/// Outcomes equal bit for bit (Debug prints every field, floats round-trip).
+fn assert_same(a: &Outcome, b: &Outcome, what: &dyn std::fmt::Display) {
+    assert_eq!(format!("{a:?}"), format!("{b:?}"), "{what}");
 }
 
 fn job(text: &str, precision: Precision, tolerance: Option<f64>) -> Job {
@@ -586,26 +599,18 @@ fn gpu_size_classes_match_cpu() {
     // Groups on their own threads, chains above 16 bodies on the CPU engine
     // beside them: those get the CPU's outcomes, the others the GPU's, bit
     // for bit, and the 8 routed are counted.
-    let adapter = find_adapter(Want::Any).expect("the adapter gpu() found");
-    let split = Gpu::new(&adapter).expect("GPU context").with_profile(
-        hertz_cradle::backend::gpu::Profile {
-            calls: 4,
-            cpu_above: Some(16),
-            ..g.profile()
-        },
-    );
+    let split = gpu_with(Profile {
+        calls: 4,
+        cpu_above: Some(16),
+        ..g.profile()
+    });
     let e = split.run(&jobs).unwrap();
     for (((j, x), y), z) in jobs.iter().zip(&c).zip(&d).zip(&e) {
         let Job::Run { chain, .. } = j else {
             unreachable!()
         };
         let want = if chain.n_balls > 16 { x } else { y };
-        assert_eq!(
-            format!("{want:?}"),
-            format!("{z:?}"),
-            "{} balls",
-            chain.n_balls
-        );
+        assert_same(want, z, &format!("{} balls", chain.n_balls));
     }
     assert_eq!(split.device_stats().unwrap().cpu_scenes, 8);
     for ((j, x), y) in jobs.iter().zip(&c).zip(&d) {
@@ -646,21 +651,17 @@ fn gpu_size_classes_match_cpu() {
 /// default layout's, f64 and f32, and more dispatches were made.
 #[test]
 fn gpu_refills_and_short_dispatches_change_nothing() {
-    use hertz_cradle::backend::gpu::Profile;
     let Some(g) = gpu() else { return };
-    let adapter = find_adapter(Want::Any).expect("the adapter gpu() found");
-    let short = Gpu::new(&adapter)
-        .expect("GPU context")
-        .with_profile(Profile {
-            scenes_per_worker: 5,
-            rounds: Some(7),
-            ..g.profile()
-        });
+    let short = gpu_with(Profile {
+        scenes_per_worker: 5,
+        rounds: Some(7),
+        ..g.profile()
+    });
     for p in [Precision::F64, Precision::F32] {
         let jobs = batch(p);
         let (a, b) = (g.run(&jobs).unwrap(), short.run(&jobs).unwrap());
         for (i, (x, y)) in a.iter().zip(&b).enumerate() {
-            assert_eq!(format!("{x:?}"), format!("{y:?}"), "{} scene {i}", p.name());
+            assert_same(x, y, &format!("{} scene {i}", p.name()));
         }
     }
     let (d0, d1) = (
@@ -697,7 +698,7 @@ fn gpu_matches_cpu_on_the_stress_slice() {
         .collect();
     let (c, d) = (Cpu.run(&jobs).unwrap(), g.run(&jobs).unwrap());
     for (i, (x, y)) in c.iter().zip(&d).enumerate() {
-        assert_eq!(format!("{x:?}"), format!("{y:?}"), "scene {i}");
+        assert_same(x, y, &format!("scene {i}"));
     }
 }
 
@@ -707,17 +708,13 @@ fn gpu_matches_cpu_on_the_stress_slice() {
 /// paced by time): the committed CPU table byte for byte.
 #[test]
 fn gpu_sweep_with_concurrent_calls_writes_the_cpu_bytes() {
-    use hertz_cradle::backend::gpu::Profile;
     use hertz_cradle::sweep::run::{run, Options};
     use hertz_cradle::sweep::Sweep;
     let Some(_) = gpu() else { return };
-    let adapter = find_adapter(Want::Any).expect("the adapter gpu() found");
-    let hw = Gpu::new(&adapter)
-        .expect("GPU context")
-        .with_profile(Profile {
-            batch: 512,
-            ..Profile::HARDWARE
-        });
+    let hw = gpu_with(Profile {
+        batch: 512,
+        ..Profile::HARDWARE
+    });
     let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
     let sweep = Sweep::load(&root.join("examples/mass_gap.toml")).unwrap();
     let dir = tempfile::tempdir().unwrap();
@@ -751,7 +748,6 @@ fn gpu_sweep_with_concurrent_calls_writes_the_cpu_bytes() {
 /// key, value or range says what is allowed.
 #[test]
 fn gpu_profiles_parse_with_clear_errors() {
-    use hertz_cradle::backend::gpu::Profile;
     assert_eq!(Profile::parse("software").unwrap(), Profile::SOFTWARE);
     let p = Profile::parse("hardware, batch=32768,calls=8,cpu_above=none,rounds=64,timed=false")
         .unwrap();
