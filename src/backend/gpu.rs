@@ -246,6 +246,18 @@ pub fn size_class(n_bodies: usize) -> usize {
 type PipeKey = (bool, bool, usize);
 /// Outcomes with their places in a batch.
 type Placed = Vec<(usize, Outcome)>;
+/// Where a buffer's mapping for reading reports (`map_read`).
+type Mapping = std::sync::mpsc::Receiver<Result<(), wgpu::BufferAsyncError>>;
+
+/// Ask for `b` to be mapped for reading once the submissions that write it
+/// are done (call after submitting them); `Gpu::mapped` waits and copies.
+fn map_read(b: &wgpu::Buffer) -> Mapping {
+    let (tx, rx) = std::sync::mpsc::channel();
+    b.slice(..).map_async(wgpu::MapMode::Read, move |r| {
+        let _ = tx.send(r);
+    });
+    rx
+}
 
 /// Loop iterations of one step of `ch` in `n_weights` substeps (the
 /// pendulum's sine is a 10-term loop per body, air drag's decay up to ~25),
@@ -758,11 +770,7 @@ impl Gpu {
             ],
         });
         let groups = workers.div_ceil(WORKGROUP);
-        type Pending = (
-            wgpu::SubmissionIndex,
-            usize,
-            std::sync::mpsc::Receiver<Result<(), wgpu::BufferAsyncError>>,
-        );
+        type Pending = (wgpu::SubmissionIndex, usize, Mapping);
         let mut in_flight: std::collections::VecDeque<Pending> = Default::default();
         let mut slot = 0;
         let mut budget_written = pace.rounds;
@@ -792,13 +800,7 @@ impl Gpu {
                 enc.copy_buffer_to_buffer(&qbuf, 0, &qread[slot], 0, qsize);
                 self.stats.submitted(pace.dispatches as u64);
                 let index = self.queue.submit(Some(enc.finish()));
-                let (tx, rx) = std::sync::mpsc::channel();
-                qread[slot]
-                    .slice(..)
-                    .map_async(wgpu::MapMode::Read, move |r| {
-                        let _ = tx.send(r);
-                    });
-                in_flight.push_back((index, slot, rx));
+                in_flight.push_back((index, slot, map_read(&qread[slot])));
                 slot = (slot + 1) % ROUNDS_IN_FLIGHT;
             }
             let (index, at, rx) = in_flight.pop_front().expect("a round in flight");
@@ -821,14 +823,7 @@ impl Gpu {
         enc.copy_buffer_to_buffer(&out_r, 0, &read_r, 0, out_r.size());
         self.stats.submitted(0);
         let index = self.queue.submit(Some(enc.finish()));
-        let (tu, ru) = std::sync::mpsc::channel();
-        read_u.slice(..).map_async(wgpu::MapMode::Read, move |r| {
-            let _ = tu.send(r);
-        });
-        let (tr, rr) = std::sync::mpsc::channel();
-        read_r.slice(..).map_async(wgpu::MapMode::Read, move |r| {
-            let _ = tr.send(r);
-        });
+        let (ru, rr) = (map_read(&read_u), map_read(&read_r));
         let words = self.mapped(&read_u, index.clone(), ru)?;
         let reals = self.mapped(&read_r, index, rr)?;
         self.stats.completed();
@@ -871,7 +866,7 @@ impl Gpu {
         &self,
         b: &wgpu::Buffer,
         index: wgpu::SubmissionIndex,
-        rx: std::sync::mpsc::Receiver<Result<(), wgpu::BufferAsyncError>>,
+        rx: Mapping,
     ) -> Result<Vec<T>> {
         self.device
             .poll(wgpu::PollType::Wait {
