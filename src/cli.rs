@@ -302,17 +302,17 @@ macro_rules! value_enum {
     };
 }
 value_enum!(Method, Method::ALL);
-value_enum!(Precision, [Precision::F32, Precision::F64]);
+value_enum!(Precision, [Precision::F32, Precision::F64, Precision::Df64]);
 value_enum!(Model, Model::ALL);
 
 /// Solver settings from the command line (a file's `[solver]` may give them
 /// too; the two must agree: `config`).
 #[derive(clap::Args, Debug, Clone, Default)]
 pub struct SolverFlags {
-    /// Arithmetic precision [default: f64].
+    /// Arithmetic precision [default: f64]; df64: pairs of f32 (f64's results on GPUs with slow f64).
     #[arg(long, value_enum)]
     pub precision: Option<Precision>,
-    /// Target error of outcome velocities relative to v_in [default: 1e-6 (f64), 1e-5 (f32)].
+    /// Target error of outcome velocities relative to v_in [default: 1e-6 (f64, df64), 1e-5 (f32)].
     #[arg(long, allow_negative_numbers = true)]
     pub tolerance: Option<f64>,
     /// Physics model: hertz (integrated contacts), hard-sphere (instantaneous

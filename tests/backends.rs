@@ -249,6 +249,57 @@ fn gpu_matches_cpu_on_1200_scenes_f64() {
     }
 }
 
+/// df64 (f32 pairs): the shader's pairs are the CPU's, operation for
+/// operation: on free lines velocities are bit for bit the CPU's; on
+/// pendulums, damping and drag within 1e-11·v_in (the time that sets the
+/// last step is f64 on the CPU, a pair on the device, ~1e-13 s apart after
+/// 10^4 steps). Steps and contacts agree everywhere, and both stay within
+/// 1e-11·v_in of f64.
+#[test]
+fn gpu_matches_cpu_in_df64() {
+    let Some(g) = gpu() else { return };
+    let free = batch(Precision::Df64);
+    let n_free = free.len();
+    let mut jobs = free;
+    jobs.extend(pendulum_batch(Precision::Df64));
+    let (c, d) = (Cpu.run(&jobs).unwrap(), g.run(&jobs).unwrap());
+    for (i, (x, y)) in c.iter().zip(&d).enumerate().take(n_free) {
+        assert_eq!(x.v, y.v, "free line {i}");
+    }
+    let worst = max_diff(&jobs, &c, &d);
+    eprintln!(
+        "df64 GPU vs CPU: max |Δv|/v_in = {worst:e} over {} scenes",
+        jobs.len()
+    );
+    assert!(worst <= 1e-11, "{worst:e}");
+    for (x, y) in c.iter().zip(&d) {
+        assert_eq!((x.steps, x.contacts), (y.steps, y.contacts));
+    }
+    let mut f64_jobs = batch(Precision::F64);
+    f64_jobs.extend(pendulum_batch(Precision::F64));
+    let e = Cpu.run(&f64_jobs).unwrap();
+    // Against f64: most scenes to ~1e-13·v_in; chaotic ones (many balls at
+    // random speeds, glued, touching) amplify the pair's 2^-48 as they
+    // amplify any perturbation, but never past the batch's tolerance.
+    let mut w: Vec<f64> = jobs
+        .iter()
+        .zip(&e)
+        .zip(&d)
+        .map(|((j, x), y)| {
+            x.v.iter()
+                .zip(&y.v)
+                .map(|(p, q)| (p - q).abs())
+                .fold(0.0, f64::max)
+                / v_in(j)
+        })
+        .collect();
+    w.sort_by(f64::total_cmp);
+    let (median, p90, worst) = (w[w.len() / 2], w[w.len() * 9 / 10], w[w.len() - 1]);
+    eprintln!("df64 GPU vs f64 CPU: |Δv|/v_in median {median:e}, 90% {p90:e}, max {worst:e}");
+    assert!(median <= 1e-12 && p90 <= 1e-11, "{median:e} {p90:e}");
+    assert!(worst <= 1e-4, "{worst:e}");
+}
+
 #[test]
 fn gpu_matches_cpu_on_1200_scenes_f32() {
     let Some(g) = gpu() else { return };
@@ -265,7 +316,7 @@ fn gpu_matches_cpu_on_1200_scenes_f32() {
 #[test]
 fn shaders_validate_with_naga() {
     use hertz_cradle::backend::gpu::{shader_source_sized, SIZE_CLASSES};
-    for (p, class) in [Precision::F32, Precision::F64]
+    for (p, class) in [Precision::F32, Precision::F64, Precision::Df64]
         .into_iter()
         .flat_map(|p| SIZE_CLASSES.map(|c| (p, c)))
     {
@@ -279,6 +330,64 @@ fn shaders_validate_with_naga() {
         .validate(&module)
         .unwrap_or_else(|e| panic!("{}: {e:?}", p.name()));
     }
+}
+
+/// The shader's df64 arithmetic is `engine::real::Df64`'s, operation for
+/// operation: on random pairs over 24 decades (and exact ties for floor and
+/// the comparisons) the device gives the CPU's bits (lavapipe rounds every
+/// f32 operation as the CPU does).
+#[test]
+fn gpu_df64_arithmetic_is_the_cpus() {
+    use hertz_cradle::engine::real::{Df64, Real};
+    let Some(g) = gpu() else { return };
+    let mut rnd = common::uniform(0x2545_f491_4f6c_dd1d);
+    let mut pairs: Vec<(Df64, Df64)> = (0..4096)
+        .map(|i| {
+            let mut x = || {
+                let sign = if rnd() < 0.5 { -1.0 } else { 1.0 };
+                sign * 10f64.powf(24.0 * rnd() - 12.0)
+            };
+            let (a, b) = (x(), x());
+            // every 8th pair: b within a few ulps of the pair a (ties)
+            let b = if i % 8 == 0 {
+                a * (1.0 + 1e-15 * (i % 5) as f64)
+            } else {
+                b
+            };
+            (Df64::of(a), Df64::of(b))
+        })
+        .collect();
+    pairs.extend([2.5, -2.5, 3.0, 1e6 + 0.25].map(|x| (Df64::of(x), Df64::of(x))));
+    let got = g.df64_probe(&pairs).expect("probe runs");
+    let mut wrong = 0;
+    for (&(a, b), dev) in pairs.iter().zip(&got) {
+        let flag = |t: bool| if t { Df64::of(1.0) } else { Df64::of(0.0) };
+        let cpu = [
+            a + b,
+            a - b,
+            a * b,
+            a / b,
+            a.abs().sqrt(),
+            a.floor(),
+            a.max(b),
+            Df64 {
+                hi: flag(a < b).hi,
+                lo: flag(a <= b).hi,
+            },
+        ];
+        for (k, (c, d)) in cpu.iter().zip(dev).enumerate() {
+            if c != d {
+                wrong += 1;
+                if wrong <= 5 {
+                    eprintln!("op {k} on ({a:?}, {b:?}): cpu {c:?}, device {d:?}");
+                }
+            }
+        }
+    }
+    assert_eq!(
+        wrong, 0,
+        "df64 results differing from the CPU's (first 5 above)"
+    );
 }
 
 /// Pendulums, damped contacts and air drag: 3–6 balls on strings of 0.1–1 m,
@@ -347,7 +456,7 @@ fn gpu_matches_cpu_on_pendulums_and_damping() {
 #[test]
 fn cpu_lanes_match_single_runs_bit_for_bit() {
     use hertz_cradle::engine::{simulate_chain, Silent};
-    for p in [Precision::F64, Precision::F32] {
+    for p in [Precision::F64, Precision::F32, Precision::Df64] {
         let mut jobs = batch(p);
         jobs.extend(pendulum_batch(p));
         let lanes = Cpu.run(&jobs).unwrap();
@@ -397,7 +506,7 @@ fn shader_and_host_agree_on_the_boundary() {
         ("flags", offset_of!(GpuHeader, flags)),
     ];
     assert_eq!(rust_offsets.len(), HEADER_FIELDS.len());
-    for p in [Precision::F32, Precision::F64] {
+    for p in [Precision::F32, Precision::F64, Precision::Df64] {
         let src = shader_source(p);
         let module = naga::front::wgsl::parse_str(&src).unwrap();
         // A struct of the shader: its members and size.
@@ -480,17 +589,19 @@ fn shader_and_host_agree_on_the_boundary() {
             .types
             .iter()
             .find_map(|(_, t)| (t.name.as_deref() == Some("real")).then_some(&t.inner));
-        let width = match p {
-            Precision::F32 => 4,
-            Precision::F64 => 8,
+        let (width, alias) = match p {
+            Precision::F32 => (4, "f32"),
+            Precision::F64 => (8, "f64"),
+            Precision::Df64 => (4, "vec2<f32>"),
         };
-        if let Some(naga::TypeInner::Scalar(s)) = real {
-            assert_eq!(s.width, width);
+        match real {
+            Some(naga::TypeInner::Scalar(s)) => assert_eq!(s.width, width),
+            Some(naga::TypeInner::Vector { size, scalar }) => {
+                assert_eq!((*size, scalar.width), (naga::VectorSize::Bi, width))
+            }
+            _ => {}
         }
-        assert!(src.contains(&format!(
-            "alias real = {};",
-            if width == 4 { "f32" } else { "f64" }
-        )));
+        assert!(src.contains(&format!("alias real = {alias};")));
         // Offset functions p_* and s_*: evaluate their text `Au + Bu * nw + Cu * nb - Du`.
         for (prefix, fields) in [("p", PARAMS), ("s", STATE)] {
             for (name, _) in fields {
@@ -592,13 +703,13 @@ fn gpu_size_classes_match_cpu() {
                 .map(|i| if i == 0 { "1.0".into() } else { "0".into() })
                 .collect();
             let text = format!("balls = {n}\ngap = 1e-6\nvelocity = [{}]", v.join(", "));
-            [Precision::F64, Precision::F32].map(|p| job(&text, p, Some(1e-4)))
+            [Precision::F64, Precision::F32, Precision::Df64].map(|p| job(&text, p, Some(1e-4)))
         })
         .collect();
     let (c, d) = (Cpu.run(&jobs).unwrap(), g.run(&jobs).unwrap());
     // Groups on their own threads, chains above 16 bodies on the CPU engine
     // beside them: those get the CPU's outcomes, the others the GPU's, bit
-    // for bit, and the 8 routed are counted.
+    // for bit, and the 12 routed (4 chains × 3 precisions) are counted.
     let split = gpu_with(Profile {
         calls: 4,
         cpu_above: Some(16),
@@ -612,7 +723,7 @@ fn gpu_size_classes_match_cpu() {
         let want = if chain.n_balls > 16 { x } else { y };
         assert_same(want, z, &format!("{} balls", chain.n_balls));
     }
-    assert_eq!(split.device_stats().unwrap().cpu_scenes, 8);
+    assert_eq!(split.device_stats().unwrap().cpu_scenes, 12);
     for ((j, x), y) in jobs.iter().zip(&c).zip(&d) {
         let Job::Run { chain, solver } = j else {
             unreachable!()
@@ -624,7 +735,7 @@ fn gpu_size_classes_match_cpu() {
                 .map(|(a, b)| (a - b).abs())
                 .fold(0.0, f64::max);
         let bound = match solver.precision {
-            Precision::F64 => 1e-12,
+            Precision::F64 | Precision::Df64 => 1e-12,
             Precision::F32 => 1e-6,
         };
         assert!(

@@ -206,7 +206,7 @@ fn invalid_values_name_file_line_key_value_and_range() {
             "balls = 3\nvelocity = [1, 0, 0]\n[solver]\nprecision = \"f16\"\n",
             "s.toml",
             "`solver.precision`",
-            "\"f32\" or \"f64\"",
+            "\"f32\", \"f64\" or \"df64\"",
         ),
         (
             "balls = 3\nvelocity = \"fast\"\n",

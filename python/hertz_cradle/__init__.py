@@ -120,7 +120,7 @@ def sweep(
     "linspace": [0, 2e-5, 100]}]}``); a relative ``scene = "file.toml"`` in
     text or a dict is found from the current directory. The other arguments
     are ``cradle sweep``'s flags: ``backend`` ("auto", "gpu", "cpu"),
-    ``precision`` ("f32", "f64"), ``tolerance``, ``method``, ``model``
+    ``precision`` ("f32", "f64", "df64"), ``tolerance``, ``method``, ``model``
     ("hertz", "hard-sphere", "closure"), ``threads``, ``shard`` ("K/N"),
     ``error_estimate``.
 

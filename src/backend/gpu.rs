@@ -17,7 +17,7 @@ use super::layout::{self, GpuHeader, GpuQueue, END_RUNNING, NO_SCENE, PARAMS, ST
 use super::layout::{FLAG_DAMPED, FLAG_DRAG, FLAG_EXACT, FLAG_PENDULUM};
 use super::{Backend, DeviceStats, Job};
 use crate::engine::integrate::{closing_speed_floor, kick_weights, Run};
-use crate::engine::real::Real;
+use crate::engine::real::{Df64, Real};
 use crate::engine::{plan, simulate_chain, Chain, Outcome, Silent, Solver, UNSTEPPED};
 use crate::scene::Precision;
 
@@ -223,13 +223,16 @@ impl Tracker {
 /// bodies: the generated prelude (types, layout, codes, constants, the
 /// private arrays' size), then the body.
 pub fn shader_source_sized(p: Precision, max_bodies: usize) -> Cow<'static, str> {
-    Cow::Owned(layout::prelude(p, max_bodies) + "\n" + SHADER_BODY)
+    Cow::Owned(layout::prelude(p, max_bodies) + "\n" + &layout::body_for(SHADER_BODY, p))
 }
 
 /// The shader for any chain (private arrays of `scene::MAX_BALLS`).
 pub fn shader_source(p: Precision) -> Cow<'static, str> {
     shader_source_sized(p, crate::scene::MAX_BALLS)
 }
+
+/// Results per pair of [`Gpu::df64_probe`].
+pub const DF64_PROBE_OPS: usize = 8;
 
 /// Pipelines are specialised to chains of at most this many bodies.
 pub const SIZE_CLASSES: [usize; 4] = [8, 16, 32, 64];
@@ -242,8 +245,8 @@ pub fn size_class(n_bodies: usize) -> usize {
         .unwrap_or(crate::scene::MAX_BALLS)
 }
 
-/// (f64, terms, size class).
-type PipeKey = (bool, bool, usize);
+/// (precision, terms, size class).
+type PipeKey = (Precision, bool, usize);
 /// Outcomes with their places in a batch.
 type Placed = Vec<(usize, Outcome)>;
 /// Where a buffer's mapping for reading reports (`map_read`).
@@ -448,7 +451,7 @@ impl Gpu {
         terms: bool,
         class: usize,
     ) -> Result<Arc<wgpu::ComputePipeline>> {
-        let key = (p == Precision::F64, terms, class);
+        let key = (p, terms, class);
         let mut pipes = self.pipes.lock().unwrap_or_else(|e| e.into_inner());
         if let Some(pipe) = pipes.get(&key) {
             return Ok(pipe.clone());
@@ -510,14 +513,13 @@ impl Gpu {
         terms: bool,
         class: usize,
     ) -> Result<Vec<(Run, f64)>> {
-        let p = match std::mem::size_of::<R>() {
-            4 => Precision::F32,
-            _ if self.f64_ok => Precision::F64,
-            _ => bail!(
-                "{} has no 64-bit float support (SHADER_F64): use --precision f32 or --backend cpu",
+        let p = R::PRECISION;
+        if p == Precision::F64 && !self.f64_ok {
+            bail!(
+                "{} has no 64-bit float support (SHADER_F64): use --precision df64, f32 or --backend cpu",
                 self.info.name
-            ),
-        };
+            );
+        }
         let pipe = self.pipeline(p, terms, class)?;
         let pipe = pipe.as_ref();
         // Parts small enough for the adapter: workgroups per dimension, and
@@ -862,6 +864,108 @@ impl Gpu {
     }
 
     /// Wait for submission `index` and copy a mapped buffer's contents out.
+    /// The df64 arithmetic of the shader (`layout::arithmetic`) on this
+    /// device, for each pair (a, b): a+b, a−b, a·b, a/b, √|a|, ⌊a⌋,
+    /// max(a, b), and (a<b, a≤b) as (1|0, 1|0). `engine::real::Df64` gives
+    /// the same on the CPU bit for bit wherever the device rounds f32 +, −,
+    /// ×, ÷ and √ correctly and keeps the operations apart (lavapipe);
+    /// elsewhere to the pair's precision.
+    pub fn df64_probe(&self, pairs: &[(Df64, Df64)]) -> Result<Vec<[Df64; DF64_PROBE_OPS]>> {
+        use wgpu::util::DeviceExt;
+        let d = &self.device;
+        let src = format!(
+            "alias real = vec2<f32>;\nvar<private> one_s: f32;\n{}\n{}",
+            layout::arithmetic(Precision::Df64),
+            r"
+@group(0) @binding(0) var<storage, read> inp: array<vec2<f32>>;
+@group(0) @binding(1) var<storage, read_write> outp: array<vec2<f32>>;
+@compute @workgroup_size(64)
+fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let i = gid.x;
+    if (2u * i + 2u >= arrayLength(&inp)) {
+        return;
+    }
+    one_s = inp[0].x;
+    let a = inp[2u * i + 1u];
+    let b = inp[2u * i + 2u];
+    let o = 8u * i;
+    outp[o] = r_add(a, b);
+    outp[o + 1u] = r_sub(a, b);
+    outp[o + 2u] = r_mul(a, b);
+    outp[o + 3u] = r_div(a, b);
+    outp[o + 4u] = r_sqrt(r_abs(a));
+    outp[o + 5u] = r_floor(a);
+    outp[o + 6u] = r_max(a, b);
+    outp[o + 7u] = vec2<f32>(select(0.0, 1.0, r_lt(a, b)), select(0.0, 1.0, r_le(a, b)));
+}
+"
+        );
+        let scope = d.push_error_scope(wgpu::ErrorFilter::Validation);
+        let module = d.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("df64 probe"),
+            source: wgpu::ShaderSource::Wgsl(src.into()),
+        });
+        let pipe = d.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some("df64 probe"),
+            layout: None,
+            module: &module,
+            entry_point: Some("main"),
+            compilation_options: Default::default(),
+            cache: None,
+        });
+        if let Some(e) = pollster::block_on(scope.pop()) {
+            bail!("the df64 probe does not build on {}: {e}", self.info.name);
+        }
+        let mut inp = vec![Df64::of(1.0)];
+        inp.extend(pairs.iter().flat_map(|&(a, b)| [a, b]));
+        let inb = d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("probe in"),
+            contents: bytemuck::cast_slice(&inp),
+            usage: wgpu::BufferUsages::STORAGE,
+        });
+        let size = (pairs.len().max(1) * DF64_PROBE_OPS * std::mem::size_of::<Df64>()) as u64;
+        let buffer = |usage| {
+            d.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("probe out"),
+                size,
+                usage,
+                mapped_at_creation: false,
+            })
+        };
+        let outb = buffer(wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC);
+        let read = buffer(wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST);
+        let bind = d.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("probe"),
+            layout: &pipe.get_bind_group_layout(0),
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: inb.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: outb.as_entire_binding(),
+                },
+            ],
+        });
+        let mut enc = d.create_command_encoder(&Default::default());
+        {
+            let mut pass = enc.begin_compute_pass(&Default::default());
+            pass.set_pipeline(&pipe);
+            pass.set_bind_group(0, &bind, &[]);
+            pass.dispatch_workgroups((pairs.len() as u32).div_ceil(WORKGROUP).max(1), 1, 1);
+        }
+        enc.copy_buffer_to_buffer(&outb, 0, &read, 0, size);
+        let index = self.queue.submit([enc.finish()]);
+        let rx = map_read(&read);
+        let flat: Vec<Df64> = self.mapped(&read, index, rx)?;
+        Ok(flat
+            .chunks_exact(DF64_PROBE_OPS)
+            .take(pairs.len())
+            .map(|c| c.try_into().expect("a chunk of DF64_PROBE_OPS"))
+            .collect())
+    }
+
     fn mapped<T: Pod>(
         &self,
         b: &wgpu::Buffer,
@@ -924,11 +1028,7 @@ impl Backend for Gpu {
             })
             .unzip();
         let groups = crate::engine::hertz_groups(&runs_in, |ch, s| {
-            (
-                s.precision == Precision::F64,
-                ch.needs_terms(),
-                size_class(ch.n_bodies()),
-            )
+            (s.precision, ch.needs_terms(), size_class(ch.n_bodies()))
         });
         // Long chains on the CPU engine (a profile's `cpu_above`), the rest
         // on the device: one thread per pipeline group when the profile
@@ -938,12 +1038,12 @@ impl Backend for Gpu {
         let (cpu, gpu): (Vec<_>, Vec<_>) = groups
             .into_iter()
             .partition(|((_, _, class), _)| self.profile.cpu_above.is_some_and(|m| *class > m));
-        let group = |((f64, terms, class), idx): ((bool, bool, usize), Vec<usize>)| {
+        let group = |((p, terms, class), idx): ((Precision, bool, usize), Vec<usize>)| {
             let batch: Vec<(&Chain, &Solver)> = idx.iter().map(|&k| runs_in[k]).collect();
-            let runs = if f64 {
-                self.runs::<f64>(&batch, terms, class)?
-            } else {
-                self.runs::<f32>(&batch, terms, class)?
+            let runs = match p {
+                Precision::F32 => self.runs::<f32>(&batch, terms, class)?,
+                Precision::F64 => self.runs::<f64>(&batch, terms, class)?,
+                Precision::Df64 => self.runs::<Df64>(&batch, terms, class)?,
             };
             Ok(idx
                 .into_iter()

@@ -113,13 +113,13 @@ pub fn choose(choice: BackendChoice, precision: Precision) -> anyhow::Result<Box
                 "--backend",
                 "gpu",
                 &format!(
-                    "{} has no 64-bit floats (SHADER_F64): add --precision f32",
+                    "{} has no 64-bit floats (SHADER_F64): add --precision df64 (f32 pairs, f64's results) or f32",
                     gpu.adapter()
                 ),
             )
             .into());
         }
-        eprintln!("cradle: {} has no 64-bit floats; running f64 on the CPU ({}); --precision f32 would use the GPU", gpu.adapter(), cpu::Cpu.adapter());
+        eprintln!("cradle: {} has no 64-bit floats; running f64 on the CPU ({}); --precision df64 (f32 pairs, f64's results) or f32 would use the GPU", gpu.adapter(), cpu::Cpu.adapter());
         return Ok(Box::new(cpu::Cpu));
     }
     eprintln!("cradle: backend gpu: {}", gpu.adapter());

@@ -18,6 +18,7 @@ pub use outcome::{Outcome, Status, MAX_OVERLAP_RATIO};
 pub use solver::{Overrides, Solver, StepRule};
 
 use crate::scene::Precision;
+use real::Df64;
 
 /// The step (`None`: nothing can collide) and caps of one run; both backends
 /// start from exactly these.
@@ -53,6 +54,7 @@ pub fn simulate_chain<O: Observer>(chain: &Chain, solver: &Solver, obs: &mut O) 
     let run = match solver.precision {
         Precision::F64 => integrate::<f64, O>(chain, &task.plan, &task.lim, obs),
         Precision::F32 => integrate::<f32, O>(chain, &task.plan, &task.lim, obs),
+        Precision::Df64 => integrate::<Df64, O>(chain, &task.plan, &task.lim, obs),
     };
     Outcome::from_run(chain, &run, dt)
 }
@@ -62,16 +64,16 @@ pub fn simulate_chain<O: Observer>(chain: &Chain, solver: &Solver, obs: &mut O) 
 /// [`simulate_chain`] on each.
 pub fn simulate_batch(jobs: &[(&Chain, &Solver)]) -> Vec<Outcome> {
     let mut out: Vec<Option<Outcome>> = vec![None; jobs.len()];
-    for (f32, idx) in hertz_groups(jobs, |_, s| s.precision == Precision::F32) {
+    for (precision, idx) in hertz_groups(jobs, |_, s| s.precision) {
         let tasks: Vec<(Task, f64)> = idx
             .iter()
             .map(|&i| hertz_task(jobs[i].0, jobs[i].1))
             .collect();
         let plain: Vec<Task> = tasks.iter().map(|t| t.0).collect();
-        let runs = if f32 {
-            integrate_batch::<f32>(&plain)
-        } else {
-            integrate_batch::<f64>(&plain)
+        let runs = match precision {
+            Precision::F32 => integrate_batch::<f32>(&plain),
+            Precision::F64 => integrate_batch::<f64>(&plain),
+            Precision::Df64 => integrate_batch::<Df64>(&plain),
         };
         for ((i, run), (task, dt)) in idx.into_iter().zip(runs).zip(tasks) {
             out[i] = Some(Outcome::from_run(task.chain, &run, dt));

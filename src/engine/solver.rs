@@ -20,6 +20,9 @@ pub const F32_TOLERANCE_FLOOR: f64 = 1e-5;
 /// 1e-14 reaches the 5e7-step cap), so 1e-12 keeps it below 1% of the
 /// tolerance; the work-precision reference runs at 1e-11.
 pub const F64_TOLERANCE_FLOOR: f64 = 1e-12;
+/// Smallest tolerance in df64 (pairs of f32): its sums carry ~2^-46, so
+/// outcomes scatter by ~1e-12·v_in; 1e-10 keeps that below 1%.
+pub const DF64_TOLERANCE_FLOOR: f64 = 1e-10;
 /// Default step cap per scene.
 pub const DEFAULT_MAX_STEPS: u64 = 50_000_000;
 /// Default cap on simulated time for a free line (s). Free flight costs no
@@ -182,7 +185,7 @@ impl Solver {
             (None, Some(dt), _) => StepRule::Dt(dt),
             (None, None, Some(t)) => StepRule::Tolerance(t),
             (None, None, None) => StepRule::Tolerance(match precision {
-                Precision::F64 => DEFAULT_TOLERANCE,
+                Precision::F64 | Precision::Df64 => DEFAULT_TOLERANCE,
                 Precision::F32 => F32_TOLERANCE_FLOOR,
             }),
         };
@@ -190,10 +193,11 @@ impl Solver {
             let floor = match precision {
                 Precision::F32 => F32_TOLERANCE_FLOOR,
                 Precision::F64 => F64_TOLERANCE_FLOOR,
+                Precision::Df64 => DF64_TOLERANCE_FLOOR,
             };
             if t < floor {
                 let other = match precision {
-                    Precision::F32 => "use --precision f64 or ",
+                    Precision::F32 | Precision::Df64 => "use --precision f64 or ",
                     Precision::F64 => "use ",
                 };
                 return Err(InputError::Flag {

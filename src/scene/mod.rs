@@ -78,11 +78,15 @@ impl Method {
 }
 
 /// Arithmetic precision of an integration (`--precision`, `[solver] precision`).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+///
+/// `df64`: double-single, each value a pair of f32 (≈ 48 bits), for GPUs
+/// whose f64 is slow; the same results as f64 to ~1e-12·v_in.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Precision {
     F32,
     F64,
+    Df64,
 }
 
 impl Precision {
@@ -90,6 +94,7 @@ impl Precision {
         match s {
             "f32" => Some(Precision::F32),
             "f64" => Some(Precision::F64),
+            "df64" => Some(Precision::Df64),
             _ => None,
         }
     }
@@ -97,6 +102,7 @@ impl Precision {
         match self {
             Precision::F32 => "f32",
             Precision::F64 => "f64",
+            Precision::Df64 => "df64",
         }
     }
 }
@@ -567,7 +573,11 @@ impl SceneSpec {
         let precision = match &s.precision {
             None => None,
             Some(p) => Some(Precision::parse(p).ok_or_else(|| {
-                c.err("solver.precision", format!("{p:?}"), "\"f32\" or \"f64\"")
+                c.err(
+                    "solver.precision",
+                    format!("{p:?}"),
+                    "\"f32\", \"f64\" or \"df64\"",
+                )
             })?),
         };
         if s.dt.is_some() && s.tolerance.is_some() {

@@ -115,7 +115,7 @@ pub struct StopSpec {
 }
 
 /// `[solver]`: method, and either a fixed `dt` (s) or a `tolerance` on the
-/// outcome velocities relative to v_in; `precision` = "f32" | "f64".
+/// outcome velocities relative to v_in; `precision` = "f32" | "f64" | "df64".
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SolverSpec {

@@ -60,6 +60,8 @@ var<private> ct: array<real, 1>;
 // 1.0, read from the params buffer: a value the shader compiler cannot see,
 // so it cannot simplify the compensated sums in `add` away ((x+y)−x → y).
 var<private> one: real;
+// its f32 word, for the error-free sums and products of df64 (layout::prelude)
+var<private> one_s: f32;
 // per-scene constants (engine::integrate::Shape, and the per-lane constants of engine::integrate::Lanes)
 var<private> nb: u32;
 var<private> nc: u32;
@@ -98,15 +100,15 @@ const FLY_AGAIN: u32 = 254u;
 
 // engine::contact::hertz_force
 fn hertz_force(kc: real, dc: real) -> real {
-    if (dc > real(0.0)) {
-        return kc * dc * sqrt(dc);
+    if (r_gt(dc, real(0.0))) {
+        return r_mul(r_mul(kc, dc), r_sqrt(dc));
     }
     return real(0.0);
 }
 
 // engine::contact::contact_force — Hunt–Crossley, never negative.
 fn contact_force(kc: real, dc: real, chic: real, r: real) -> real {
-    return hertz_force(kc, dc) * max(real(1.0) + chic * r, real(0.0));
+    return r_mul(hertz_force(kc, dc), r_max(r_add(real(1.0), r_mul(chic, r)), real(0.0)));
 }
 
 // engine::integrate::pendulum_sin — reduce to [−π/2, π/2], Taylor to θ^21.
@@ -114,34 +116,34 @@ fn pendulum_sin(th: real) -> real {
     let tau = real(6.283185307179586);
     let pi = real(3.141592653589793);
     let half_pi = real(1.5707963267948966);
-    var x = th - tau * floor(th / tau + real(0.5));
-    if (x > half_pi) {
-        x = pi - x;
-    } else if (x < -half_pi) {
-        x = -pi - x;
+    var x = r_sub(th, r_mul(tau, r_floor(r_add(r_div(th, tau), real(0.5)))));
+    if (r_gt(x, half_pi)) {
+        x = r_sub(pi, x);
+    } else if (r_lt(x, r_neg(half_pi))) {
+        x = r_sub(r_neg(pi), x);
     }
-    let x2 = x * x;
+    let x2 = r_mul(x, x);
     var p = real(1.0);
     for (var n = 10u; n >= 1u; n--) {
-        p = real(1.0) - x2 * p / real(2u * n * (2u * n + 1u));
+        p = r_sub(real(1.0), r_div(r_mul(x2, p), real(2u * n * (2u * n + 1u))));
     }
-    return x * p;
+    return r_mul(x, p);
 }
 
 // engine::integrate::decay — e^{−y} for y ≥ 0.
 fn decay(y: real) -> real {
     var z = y;
     var kk = 0u;
-    while (z > real(0.0625) && kk < 64u) {
-        z = z * real(0.5);
+    while (r_gt(z, real(0.0625)) && kk < 64u) {
+        z = r_mul(z, real(0.5));
         kk++;
     }
     var p = real(1.0);
     for (var n = 9u; n >= 1u; n--) {
-        p = real(1.0) - z * p / real(n);
+        p = r_sub(real(1.0), r_div(r_mul(z, p), real(n)));
     }
     for (var j = 0u; j < kk; j++) {
-        p = p * p;
+        p = r_mul(p, p);
     }
     return p;
 }
@@ -149,24 +151,24 @@ fn decay(y: real) -> real {
 // engine::integrate::add — x[i] += inc, Kahan-compensated when COMPENSATED.
 fn add(x: ptr<private, array<real, MAX_BALLS>>, cx: ptr<private, array<real, MAX_BALLS>>, i: u32, inc: real) {
     if (COMPENSATED) {
-        let y = inc - (*cx)[i];
-        let t = ((*x)[i] + y) * one;
-        (*cx)[i] = (t - (*x)[i]) - y;
+        let y = r_sub(inc, (*cx)[i]);
+        let t = r_mul(r_add((*x)[i], y), one);
+        (*cx)[i] = r_sub(r_sub(t, (*x)[i]), y);
         (*x)[i] = t;
     } else {
-        (*x)[i] = (*x)[i] + inc;
+        (*x)[i] = r_add((*x)[i], inc);
     }
 }
 
 // `add` for a single value (body 0's displacement, the time).
 fn add1(x: ptr<private, array<real, 1>>, cx: ptr<private, array<real, 1>>, inc: real) {
     if (COMPENSATED) {
-        let y = inc - (*cx)[0];
-        let t = ((*x)[0] + y) * one;
-        (*cx)[0] = (t - (*x)[0]) - y;
+        let y = r_sub(inc, (*cx)[0]);
+        let t = r_mul(r_add((*x)[0], y), one);
+        (*cx)[0] = r_sub(r_sub(t, (*x)[0]), y);
         (*x)[0] = t;
     } else {
-        (*x)[0] = (*x)[0] + inc;
+        (*x)[0] = r_add((*x)[0], inc);
     }
 }
 
@@ -174,24 +176,24 @@ fn add1(x: ptr<private, array<real, 1>>, cx: ptr<private, array<real, 1>>, inc: 
 // is pushed left by contact b, right by contact b−1.
 fn kick(hh: real) {
     if (dragged) {
-        let q = decay(drag * hh);
+        let q = decay(r_mul(drag, hh));
         for (var b = 0u; b < nb; b++) {
-            v[b] = v[b] * q;
-            cv[b] = cv[b] * q;
+            v[b] = r_mul(v[b], q);
+            cv[b] = r_mul(cv[b], q);
         }
     }
-    push(0u, -(hh * f[0] * inv_m[0]), hh);
+    push(0u, r_neg(r_mul(r_mul(hh, f[0]), inv_m[0])), hh);
     for (var b = 1u; b < nb - 1u; b++) {
-        push(b, hh * (f[b - 1u] - f[b]) * inv_m[b], hh);
+        push(b, r_mul(r_mul(hh, r_sub(f[b - 1u], f[b])), inv_m[b]), hh);
     }
-    push(nb - 1u, hh * f[nb - 2u] * inv_m[nb - 1u], hh);
+    push(nb - 1u, r_mul(r_mul(hh, f[nb - 2u]), inv_m[nb - 1u]), hh);
 }
 
 // body b's share of a kick, gravity added after (the loop body of engine::integrate::Lanes::kick)
 fn push(b: u32, contact: real, hh: real) {
     var inc = contact;
     if (pend) {
-        inc = inc + hh * acc[b];
+        inc = r_add(inc, r_mul(hh, acc[b]));
     }
     add(&v, &cv, b, inc);
 }
@@ -201,18 +203,18 @@ fn forces() -> bool {
     var closed = false;
     for (var c = 0u; c < nc; c++) {
         if (damped) {
-            f[c] = contact_force(k[c], d[c], chi[c], v[c] - v[c + 1u]);
+            f[c] = contact_force(k[c], d[c], chi[c], r_sub(v[c], v[c + 1u]));
         } else {
             f[c] = hertz_force(k[c], d[c]);
         }
-        closed = closed || (d[c] > real(0.0));
+        closed = closed || r_gt(d[c], real(0.0));
     }
     if (pend) {
         var x = x0[0];
-        acc[0] = -(g * pendulum_sin(x * inv_l));
+        acc[0] = r_neg(r_mul(g, pendulum_sin(r_mul(x, inv_l))));
         for (var b = 1u; b < nb; b++) {
-            x = x - gap[b - 1u] - d[b - 1u];
-            acc[b] = -(g * pendulum_sin(x * inv_l));
+            x = r_sub(r_sub(x, gap[b - 1u]), d[b - 1u]);
+            acc[b] = r_neg(r_mul(g, pendulum_sin(r_mul(x, inv_l))));
         }
     }
     return closed;
@@ -227,7 +229,7 @@ fn graded_step(s0: real, h: real, h_min: real, tc: real, quarters: u32) -> real 
     var cap = real(0.0);
     var near = real(0.0);
     for (var c = 0u; c < nc; c++) {
-        let r = v[c] - v[c + 1u];
+        let r = r_sub(v[c], v[c + 1u]);
         let dc = d[c];
         // δ̈ of the pair: its neighbours' contact pushes and gravity.
         var left = real(0.0);
@@ -238,32 +240,32 @@ fn graded_step(s0: real, h: real, h_min: real, tc: real, quarters: u32) -> real 
         if (c + 1u < nc) {
             right = f[c + 1u];
         }
-        var a = (left - f[c]) * inv_m[c] - (f[c] - right) * inv_m[c + 1u];
+        var a = r_sub(r_mul(r_sub(left, f[c]), inv_m[c]), r_mul(r_sub(f[c], right), inv_m[c + 1u]));
         if (pend) {
-            a = a + (acc[c] - acc[c + 1u]);
+            a = r_add(a, r_sub(acc[c], acc[c + 1u]));
         }
         // Distance to the kink, and speed and acceleration towards it: the
         // kink ahead at the first root of dd − rr·t − aa·t²/2, the one
         // behind (moving away) dd/|rr| ago.
-        let dd = abs(dc);
+        let dd = r_abs(dc);
         var rr = r;
         var aa = a;
-        if (dc > real(0.0)) {
-            rr = -r;
-            aa = -a;
+        if (r_gt(dc, real(0.0))) {
+            rr = r_neg(r);
+            aa = r_neg(a);
         }
-        let disc = rr * rr + (aa + aa) * dd;
-        let den = rr + sqrt(max(disc, real(0.0)));
+        let disc = r_add(r_mul(rr, rr), r_mul(r_add(aa, aa), dd));
+        let den = r_add(rr, r_sqrt(r_max(disc, real(0.0))));
         var has_ahead = false;
         var ahead = real(0.0);
-        if (disc >= real(0.0) && den > real(0.0)) {
+        if (r_ge(disc, real(0.0)) && r_gt(den, real(0.0))) {
             has_ahead = true;
-            ahead = (dd + dd) / den;
+            ahead = r_div(r_add(dd, dd), den);
         }
-        let has_behind = rr < real(0.0);
+        let has_behind = r_lt(rr, real(0.0));
         var behind = real(0.0);
         if (has_behind) {
-            behind = dd / -rr;
+            behind = r_div(dd, r_neg(rr));
         }
         if (!has_ahead && !has_behind) {
             continue; // no kink in reach
@@ -271,20 +273,20 @@ fn graded_step(s0: real, h: real, h_min: real, tc: real, quarters: u32) -> real 
         // Halve the distance to a kink ahead, at most double the distance from
         // one behind: no substep reaches across a kink until the step is h_min.
         var tk = ahead;
-        var cc = ahead * real(0.5);
+        var cc = r_mul(ahead, real(0.5));
         if (!has_ahead) {
             tk = behind;
-            cc = behind + behind;
+            cc = r_add(behind, behind);
         } else if (has_behind) {
-            tk = min(ahead, behind);
-            cc = min(ahead * real(0.5), behind + behind);
+            tk = r_min(ahead, behind);
+            cc = r_min(r_mul(ahead, real(0.5)), r_add(behind, behind));
         }
-        if (tk >= s0 + s0) {
+        if (r_ge(tk, r_add(s0, s0))) {
             continue; // no restriction from this contact
         }
         if (any) {
-            cap = min(cap, cc);
-            near = min(near, tk);
+            cap = r_min(cap, cc);
+            near = r_min(near, tk);
         } else {
             cap = cc;
             near = tk;
@@ -295,33 +297,33 @@ fn graded_step(s0: real, h: real, h_min: real, tc: real, quarters: u32) -> real 
         return s0;
     }
     var graded = cap;
-    if (near < tc) {
-        let q = sqrt(sqrt(near / tc));
+    if (r_lt(near, tc)) {
+        let q = r_sqrt(r_sqrt(r_div(near, tc)));
         var gr = real(1.0);
         for (var j = 0u; j < quarters; j++) {
-            gr = gr * q;
+            gr = r_mul(gr, q);
         }
-        graded = min(cap, h * gr);
+        graded = r_min(cap, r_mul(h, gr));
     }
-    return min(s0, max(graded, h_min));
+    return r_min(s0, r_max(graded, h_min));
 }
 
 // engine::integrate::kink_impulse_error — the exact integral of k·δ⁺^{3/2}
 // along a straight line from d0 to d1 minus the composition's quadrature of
 // it (weights at params[w0..], kicks at params[k0..]).
 fn kink_impulse_error(kc: real, d0: real, d1: real, w0: u32, k0: u32, n: u32) -> real {
-    let dd = d1 - d0;
-    let p0 = max(d0, real(0.0));
-    let p1 = max(d1, real(0.0));
-    let exact = real(0.4) * (p1 * p1 * sqrt(p1) - p0 * p0 * sqrt(p0)) / dd;
+    let dd = r_sub(d1, d0);
+    let p0 = r_max(d0, real(0.0));
+    let p1 = r_max(d1, real(0.0));
+    let exact = r_div(r_mul(real(0.4), r_sub(r_mul(r_mul(p1, p1), r_sqrt(p1)), r_mul(r_mul(p0, p0), r_sqrt(p0)))), dd);
     var pos = real(0.0);
-    var quad = params[k0] * (p0 * sqrt(p0));
+    var quad = r_mul(params[k0], r_mul(p0, r_sqrt(p0)));
     for (var i = 0u; i < n; i++) {
-        pos = pos + params[w0 + i];
-        let p = max(d0 + pos * dd, real(0.0));
-        quad = quad + params[k0 + i + 1u] * (p * sqrt(p));
+        pos = r_add(pos, params[w0 + i]);
+        let p = r_max(r_add(d0, r_mul(pos, dd)), real(0.0));
+        quad = r_add(quad, r_mul(params[k0 + i + 1u], r_mul(p, r_sqrt(p))));
     }
-    return kc * (exact - quad);
+    return r_mul(kc, r_sub(exact, quad));
 }
 
 // engine::integrate::stiffness_cap — s0, at most h_stiff/Λ^{1/4} (not below
@@ -330,14 +332,14 @@ fn stiffness_cap(s0: real, h_stiff: real, h_min: real) -> real {
     var lam = real(0.0);
     var right = real(0.0);
     for (var c = 0u; c < nc; c++) {
-        let dp = max(d[c], real(0.0));
-        lam = max(lam, right + stiff_l[c] * dp);
-        right = stiff_r[c] * dp;
+        let dp = r_max(d[c], real(0.0));
+        lam = r_max(lam, r_add(right, r_mul(stiff_l[c], dp)));
+        right = r_mul(stiff_r[c], dp);
     }
-    let lm = max(lam, right);
-    if (lm > real(0.0) && h_stiff > real(0.0)) {
-        let cap = max(h_stiff / sqrt(sqrt(lm)), h_min);
-        if (cap < s0) {
+    let lm = r_max(lam, right);
+    if (r_gt(lm, real(0.0)) && r_gt(h_stiff, real(0.0))) {
+        let cap = r_max(r_div(h_stiff, r_sqrt(r_sqrt(lm))), h_min);
+        if (r_lt(cap, s0)) {
             return cap;
         }
     }
@@ -350,22 +352,22 @@ fn fifth_root(x: real) -> real {
     var y = x;
     var s = real(1.0);
     var n = 0u;
-    while (y >= real(32.0) && n < FIFTH_ROOT_SCALINGS) {
-        y = y / real(32.0);
-        s = s * real(2.0);
+    while (r_ge(y, real(32.0)) && n < FIFTH_ROOT_SCALINGS) {
+        y = r_div(y, real(32.0));
+        s = r_mul(s, real(2.0));
         n += 1u;
     }
-    while (y < real(1.0) && n < FIFTH_ROOT_SCALINGS) {
-        y = y * real(32.0);
-        s = s * real(0.5);
+    while (r_lt(y, real(1.0)) && n < FIFTH_ROOT_SCALINGS) {
+        y = r_mul(y, real(32.0));
+        s = r_mul(s, real(0.5));
         n += 1u;
     }
-    var w = real(1.1) + y * (real(0.0542) - y * real(0.00086));
+    var w = r_add(real(1.1), r_mul(y, r_sub(real(0.0542), r_mul(y, real(0.00086)))));
     for (var j = 0u; j < 5u; j++) {
-        let w2 = w * w;
-        w = (real(4.0) * w + y / (w2 * w2)) * real(0.2);
+        let w2 = r_mul(w, w);
+        w = r_mul(r_add(r_mul(real(4.0), w), r_div(y, r_mul(w2, w2))), real(0.2));
     }
-    return w * s;
+    return r_mul(w, s);
 }
 
 // Closed-form impact results: time taken, largest overlap.
@@ -391,33 +393,33 @@ fn exact_impact(c: u32) -> Impact {
     let b = c + 1u;
     let va = v[a];
     let vb = v[b];
-    let u = va - vb;
+    let u = r_sub(va, vb);
     let ia = inv_m[a];
     let ib = inv_m[b];
-    let fa = ia / (ia + ib);
-    let fb = ib / (ia + ib);
+    let fa = r_div(ia, r_add(ia, ib));
+    let fb = r_div(ib, r_add(ia, ib));
     let w = fifth_root(u);
-    let tc = imp_t[c] / w;
-    let va2 = va - (fa + fa) * u;
-    let vb2 = vb + (fb + fb) * u;
-    let vcm = va - fa * u;
+    let tc = r_div(imp_t[c], w);
+    let va2 = r_sub(va, r_mul(r_add(fa, fa), u));
+    let vb2 = r_add(vb, r_mul(r_add(fb, fb), u));
+    let vcm = r_sub(va, r_mul(fa, u));
     var out = Impact(false, zero, zero);
-    if (c > 0u && d[c - 1u] + max(v[a - 1u] - min(va, va2), zero) * tc > zero) {
+    if (c > 0u && r_gt(r_add(d[c - 1u], r_mul(r_max(r_sub(v[a - 1u], r_min(va, va2)), zero), tc)), zero)) {
         return out;
     }
-    if (b < nc && d[b] + max(max(vb, vb2) - v[b + 1u], zero) * tc > zero) {
+    if (b < nc && r_gt(r_add(d[b], r_mul(r_max(r_sub(r_max(vb, vb2), v[b + 1u]), zero), tc)), zero)) {
         return out;
     }
     for (var j = 0u; j < nc; j++) {
         if (j + 1u < c || j > b) {
-            if (d[j] + (v[j] - v[j + 1u]) * tc > zero) {
+            if (r_gt(r_add(d[j], r_mul(r_sub(v[j], v[j + 1u]), tc)), zero)) {
                 return out;
             }
         }
     }
     for (var j = 0u; j < nc; j++) {
         if (j != c) {
-            d[j] = d[j] + (impact_speed(j, a, vcm) - impact_speed(j + 1u, a, vcm)) * tc;
+            d[j] = r_add(d[j], r_mul(r_sub(impact_speed(j, a, vcm), impact_speed(j + 1u, a, vcm)), tc));
         }
     }
     v[a] = va2;
@@ -426,7 +428,7 @@ fn exact_impact(c: u32) -> Impact {
     cv[b] = zero;
     out.taken = true;
     out.tc = tc;
-    out.dmax = imp_d[c] * u / w;
+    out.dmax = r_div(r_mul(imp_d[c], u), w);
     return out;
 }
 
@@ -442,6 +444,7 @@ fn load(i: u32) {
     v_floor = params[p0 + p_v_floor(nb, nw)];
     max_time = params[p0 + p_max_time(nb, nw)];
     one = params[p0 + p_one(nb, nw)];
+    one_s = r_hi(one);
     h_min = params[p0 + p_h_min(nb, nw)];
     t_scale = params[p0 + p_t_scale(nb, nw)];
     h_free = params[p0 + p_h_free(nb, nw)];
@@ -505,10 +508,10 @@ fn ready() -> u32 {
         var tau = real(0.0);
         var next = 0u;
         for (var c = 0u; c < nc; c++) {
-            let r = v[c] - v[c + 1u];
-            if (r > v_floor) {
-                let dt = -d[c] / r;
-                if (!found || dt < tau) {
+            let r = r_sub(v[c], v[c + 1u]);
+            if (r_gt(r, v_floor)) {
+                let dt = r_div(r_neg(d[c]), r);
+                if (!found || r_lt(dt, tau)) {
                     tau = dt;
                     next = c;
                     found = true;
@@ -518,52 +521,52 @@ fn ready() -> u32 {
         if (!found) {
             return END_SETTLED;
         }
-        let capped = tt[0] + tau > max_time;
+        let capped = r_gt(r_add(tt[0], tau), max_time);
         if (capped) {
-            tau = max(max_time - tt[0], real(0.0));
+            tau = r_max(r_sub(max_time, tt[0]), real(0.0));
         }
-        if (tau > real(0.0)) {
+        if (r_gt(tau, real(0.0))) {
             for (var c = 0u; c < nc; c++) {
-                let r = v[c] - v[c + 1u];
-                let dn = d[c] + r * tau;
+                let r = r_sub(v[c], v[c + 1u]);
+                let dn = r_add(d[c], r_mul(r, tau));
                 // A closing speed at or below the floor: no onset, but no
                 // passing through either — the pair stops touching.
-                if (r > real(0.0) && r <= v_floor) {
-                    d[c] = min(dn, real(0.0));
+                if (r_gt(r, real(0.0)) && r_le(r, v_floor)) {
+                    d[c] = r_min(dn, real(0.0));
                 } else {
                     d[c] = dn;
                 }
             }
-            tt[0] = tt[0] + tau;
+            tt[0] = r_add(tt[0], tau);
         }
         if (capped) {
             return END_TIME_CAP;
         }
         d[next] = real(0.0);
         cd[next] = real(0.0);
-        if (t_first < real(0.0)) {
+        if (r_lt(t_first, real(0.0))) {
             t_first = tt[0];
         }
         // An isolated impact is over in one jump; then free flight again.
         if (exact) {
             let imp = exact_impact(next);
             if (imp.taken) {
-                max_ov = max(max_ov, imp.dmax);
-                max_ratio = max(max_ratio, imp.dmax * inv_r[next]);
-                tt[0] = tt[0] + imp.tc;
+                max_ov = r_max(max_ov, imp.dmax);
+                max_ratio = r_max(max_ratio, r_mul(imp.dmax, inv_r[next]));
+                tt[0] = r_add(tt[0], imp.tc);
                 contacts += 1u;
-                t_release = max(t_release, tt[0]);
+                t_release = r_max(t_release, tt[0]);
                 return FLY_AGAIN;
             }
         }
     }
-    if (pend && tt[0] >= max_time) {
+    if (pend && r_ge(tt[0], max_time)) {
         return END_DURATION;
     }
     if (steps >= hd.max_steps) {
         return END_STEP_CAP;
     }
-    if (tt[0] >= max_time) {
+    if (r_ge(tt[0], max_time)) {
         return END_TIME_CAP;
     }
     return END_RUNNING;
@@ -584,8 +587,8 @@ fn plan_steps() {
     }
     last = false;
     if (pend) {
-        let rest = (max_time - tt[0]) - ct[0];
-        if (rest <= hstep) {
+        let rest = r_sub(r_sub(max_time, tt[0]), ct[0]);
+        if (r_le(rest, hstep)) {
             hstep = rest;
             last = true;
         }
@@ -594,11 +597,11 @@ fn plan_steps() {
         d0[c] = d[c];
         if (damped) {
             // χ = a/v_imp: the closing speed at onset, or the largest since.
-            let chi_c = a_e / max(v[c] - v[c + 1u], v_floor);
-            if (d[c] <= real(0.0)) {
+            let chi_c = r_div(a_e, r_max(r_sub(v[c], v[c + 1u]), v_floor));
+            if (r_le(d[c], real(0.0))) {
                 chi[c] = chi_c;
             } else {
-                chi[c] = min(chi[c], chi_c);
+                chi[c] = r_min(chi[c], chi_c);
             }
         }
     }
@@ -608,17 +611,17 @@ fn plan_steps() {
 // one step: velocity-Verlet substeps (kick, drift, forces, kick), the
 // closing half kick of each joined with the opening one of the next.
 fn substeps() {
-    kick(params[k0] * hstep);
+    kick(r_mul(params[k0], hstep));
     for (var wi = 0u; wi < hd.n_weights; wi++) {
-        let ws = params[w0 + wi] * hstep;
+        let ws = r_mul(params[w0 + wi], hstep);
         for (var c = 0u; c < nc; c++) {
-            add(&d, &cd, c, ws * (v[c] - v[c + 1u]));
+            add(&d, &cd, c, r_mul(ws, r_sub(v[c], v[c + 1u])));
         }
         if (pend) {
-            add1(&x0, &cx0, ws * v[0]);
+            add1(&x0, &cx0, r_mul(ws, v[0]));
         }
         closed = forces();
-        kick(params[k0 + wi + 1u] * hstep);
+        kick(r_mul(params[k0 + wi + 1u], hstep));
     }
 }
 
@@ -638,27 +641,27 @@ fn account() -> bool {
     for (var c = 0u; c < nc; c++) {
         let dd = d0[c];
         let d1 = d[c];
-        if (hd.quarters > 0u && !damped && ((d1 > real(0.0)) != (dd > real(0.0)))) {
-            let dj = kink_impulse_error(k[c], dd, d1, w0, k0, hd.n_weights) * hstep;
-            add(&v, &cv, c, -(dj * inv_m[c]));
-            add(&v, &cv, c + 1u, dj * inv_m[c + 1u]);
+        if (hd.quarters > 0u && !damped && (r_gt(d1, real(0.0)) != r_gt(dd, real(0.0)))) {
+            let dj = r_mul(kink_impulse_error(k[c], dd, d1, w0, k0, hd.n_weights), hstep);
+            add(&v, &cv, c, r_neg(r_mul(dj, inv_m[c])));
+            add(&v, &cv, c + 1u, r_mul(dj, inv_m[c + 1u]));
         }
-        if (d1 > real(0.0)) {
-            if (dd <= real(0.0)) {
+        if (r_gt(d1, real(0.0))) {
+            if (r_le(dd, real(0.0))) {
                 contacts += 1u;
-                if (t_first < real(0.0)) {
+                if (r_lt(t_first, real(0.0))) {
                     t_first = t_start;
                 }
             }
-            max_ov = max(max_ov, d1);
-            max_ratio = max(max_ratio, d1 * inv_r[c]);
-        } else if (dd > real(0.0)) {
-            t_release = max(t_release, t_start + hstep * dd / (dd - d1));
+            max_ov = r_max(max_ov, d1);
+            max_ratio = r_max(max_ratio, r_mul(d1, inv_r[c]));
+        } else if (r_gt(dd, real(0.0))) {
+            t_release = r_max(t_release, r_add(t_start, r_div(r_mul(hstep, dd), r_sub(dd, d1))));
         }
     }
     var finite = true;
     for (var b = 0u; b < nb; b++) {
-        finite = finite && (abs(v[b]) < real(FINITE_LIMIT));
+        finite = finite && r_lt(r_abs(v[b]), real(FINITE_LIMIT));
     }
     return finite;
 }
