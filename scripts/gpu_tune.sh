@@ -4,7 +4,8 @@
 # time and what the sidecar says the device did (stages_s.gpu). Copy it into
 # .gpu/ beside the stripped `cradle`, grid1000.toml and stress.toml (see
 # ../shared/gpu/README.md) and run `bash .gpu/gpu_tune.sh [PROFILE ...]`.
-# Outputs do not depend on the profile: every table is compared to the first.
+# Outputs do not depend on the profile: every table is compared to the first
+# of its workload and precision. Last, grid1000 in df64 (pairs of f32).
 cd "$(dirname "$0")"
 for f in ../.gl/*.deb; do dpkg -x "$f" /; done 2>/dev/null; ldconfig 2>/dev/null
 export XDG_RUNTIME_DIR=/tmp
@@ -42,4 +43,6 @@ rm -f /tmp/tune-first-*
 for p in "${profiles[@]}"; do
   run grid1000 f64 "$p"; run grid1000 f32 "$p"
 done
+# df64 (f32 pairs) against f64 and f32 on the first profile: its cost where f64 is not slow.
+run grid1000 df64 "${profiles[0]}"
 for p in "${profiles[@]}"; do run stress f64 "$p"; done
