@@ -250,7 +250,8 @@ fn gpu_matches_cpu_on_1200_scenes_f64() {
 }
 
 /// df64 (f32 pairs): the shader's pairs are the CPU's, operation for
-/// operation: on free lines velocities are bit for bit the CPU's; on
+/// operation: on free lines velocities are bit for bit the CPU's (on a
+/// software adapter; within 1e-11·v_in on hardware); on
 /// pendulums, damping and drag within 1e-11·v_in (the time that sets the
 /// last step is f64 on the CPU, a pair on the device, ~1e-13 s apart after
 /// 10^4 steps). Steps and contacts agree everywhere, and both stay within
@@ -263,8 +264,10 @@ fn gpu_matches_cpu_in_df64() {
     let mut jobs = free;
     jobs.extend(pendulum_batch(Precision::Df64));
     let (c, d) = (Cpu.run(&jobs).unwrap(), g.run(&jobs).unwrap());
-    for (i, (x, y)) in c.iter().zip(&d).enumerate().take(n_free) {
-        assert_eq!(x.v, y.v, "free line {i}");
+    if g.info().device_type == wgpu::DeviceType::Cpu {
+        for (i, (x, y)) in c.iter().zip(&d).enumerate().take(n_free) {
+            assert_eq!(x.v, y.v, "free line {i}");
+        }
     }
     let worst = max_diff(&jobs, &c, &d);
     eprintln!(
@@ -334,8 +337,8 @@ fn shaders_validate_with_naga() {
 
 /// The shader's df64 arithmetic is `engine::real::Df64`'s, operation for
 /// operation: on random pairs over 24 decades (and exact ties for floor and
-/// the comparisons) the device gives the CPU's bits (lavapipe rounds every
-/// f32 operation as the CPU does).
+/// the comparisons) a software adapter gives the CPU's bits, a hardware one
+/// the pair's precision.
 #[test]
 fn gpu_df64_arithmetic_is_the_cpus() {
     use hertz_cradle::engine::real::{Df64, Real};
@@ -359,6 +362,8 @@ fn gpu_df64_arithmetic_is_the_cpus() {
         .collect();
     pairs.extend([2.5, -2.5, 3.0, 1e6 + 0.25].map(|x| (Df64::of(x), Df64::of(x))));
     let got = g.df64_probe(&pairs).expect("probe runs");
+    // lavapipe (a CPU) rounds every f32 operation as the CPU does: bit for bit.
+    let exact = g.info().device_type == wgpu::DeviceType::Cpu;
     let mut wrong = 0;
     for (&(a, b), dev) in pairs.iter().zip(&got) {
         let flag = |t: bool| if t { Df64::of(1.0) } else { Df64::of(0.0) };
@@ -376,7 +381,16 @@ fn gpu_df64_arithmetic_is_the_cpus() {
             },
         ];
         for (k, (c, d)) in cpu.iter().zip(dev).enumerate() {
-            if c != d {
+            // A hardware GPU may round f32 ÷ and √ differently (Vulkan allows
+            // 2.5 ulp): the pair must then still hold its ~2^-45 of the
+            // result (of the larger operand for sums); ties, floor and the
+            // comparisons stay exact.
+            let scale = match k {
+                0 | 1 => a.abs().max(b.abs()).to64(),
+                _ => c.abs().to64(),
+            };
+            let close = !exact && k < 5 && (c.to64() - d.to64()).abs() <= 3e-14 * scale;
+            if c != d && !close {
                 wrong += 1;
                 if wrong <= 5 {
                     eprintln!("op {k} on ({a:?}, {b:?}): cpu {c:?}, device {d:?}");
