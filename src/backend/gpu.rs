@@ -867,9 +867,8 @@ impl Gpu {
     /// The df64 arithmetic of the shader (`layout::arithmetic`) on this
     /// device, for each pair (a, b): a+b, a−b, a·b, a/b, √|a|, ⌊a⌋,
     /// max(a, b), and (a<b, a≤b) as (1|0, 1|0). `engine::real::Df64` gives
-    /// the same on the CPU bit for bit wherever the device rounds f32 +, −,
-    /// ×, ÷ and √ correctly and keeps the operations apart (lavapipe);
-    /// elsewhere to the pair's precision.
+    /// the same on the CPU bit for bit wherever the device rounds f32 ÷ and
+    /// √ correctly (lavapipe); elsewhere to the pair's precision.
     pub fn df64_probe(&self, pairs: &[(Df64, Df64)]) -> Result<Vec<[Df64; DF64_PROBE_OPS]>> {
         use wgpu::util::DeviceExt;
         let d = &self.device;
