@@ -17,8 +17,10 @@ profiles=("$@")
   "hardware,scenes_per_worker=2,calls=8"
   "hardware,batch=65536,calls=2,scenes_per_worker=2"
   "hardware,timed=false,rounds=4096"
-  "hardware,cpu_above=none"
-  "hardware,cpu_above=16"
+  "hardware,wide_above=none"
+  "hardware,wide_above=8"
+  "hardware,wide_above=32"
+  "hardware,wide_above=none,cpu_above=32"
 )
 run() {  # run WORKLOAD PRECISION PROFILE
   local out=/tmp/tune-$1-$2.csv s w

@@ -318,14 +318,24 @@ fn gpu_matches_cpu_on_1200_scenes_f32() {
 
 #[test]
 fn shaders_validate_with_naga() {
-    use hertz_cradle::backend::gpu::{shader_source_sized, SIZE_CLASSES};
-    for (p, class) in [Precision::F32, Precision::F64, Precision::Df64]
+    use hertz_cradle::backend::gpu::{shader_source_sized, shader_source_wide, SIZE_CLASSES};
+    for (p, class, wide) in [Precision::F32, Precision::F64, Precision::Df64]
         .into_iter()
         .flat_map(|p| SIZE_CLASSES.map(|c| (p, c)))
+        .flat_map(|(p, c)| [(p, c, false), (p, c, true)])
     {
-        let src = shader_source_sized(p, class);
-        let module = naga::front::wgsl::parse_str(&src)
-            .unwrap_or_else(|e| panic!("{} {class}: {}", p.name(), e.emit_to_string(&src)));
+        let src = if wide {
+            shader_source_wide(p, class)
+        } else {
+            shader_source_sized(p, class)
+        };
+        let module = naga::front::wgsl::parse_str(&src).unwrap_or_else(|e| {
+            panic!(
+                "{} {class} wide={wide}: {}",
+                p.name(),
+                e.emit_to_string(&src)
+            )
+        });
         naga::valid::Validator::new(
             naga::valid::ValidationFlags::all(),
             naga::valid::Capabilities::FLOAT64,
@@ -661,7 +671,11 @@ fn shader_and_host_agree_on_the_boundary() {
 /// exists: the twin's cross-references stay true.
 #[test]
 fn shader_cites_only_rust_items_that_exist() {
-    let body = hertz_cradle::backend::gpu::SHADER_BODY;
+    let body = [
+        hertz_cradle::backend::gpu::SHADER_BODY,
+        hertz_cradle::backend::gpu::WIDE_BODY,
+    ]
+    .concat();
     fn rust_under(dir: &std::path::Path, out: &mut String) {
         for e in std::fs::read_dir(dir).unwrap() {
             let p = e.unwrap().path();
@@ -769,6 +783,48 @@ fn gpu_size_classes_match_cpu() {
     }
 }
 
+/// The kernel with a workgroup per scene (`wide.wgsl`, an invocation per
+/// body; the hardware profile's for chains above 16 bodies) gives the
+/// outcomes of the kernel with an invocation per scene: free lines of every
+/// method, glue and length 2–9, pendulums, damping and drag, and chains of
+/// 16, 17, 33 and 64 bodies (three size classes), with three scenes a worker and
+/// seven loop rounds a dispatch (every scene resumed across dispatches) — bit
+/// for bit on a software adapter, to the precision's bound on hardware.
+#[test]
+fn gpu_wide_kernel_gives_the_serial_kernels_outcomes() {
+    let Some(g) = gpu() else { return };
+    let wide = gpu_with(Profile {
+        wide_above: Some(1),
+        scenes_per_worker: 3,
+        rounds: Some(7),
+        ..g.profile()
+    });
+    let exact = g.info().device_type == wgpu::DeviceType::Cpu;
+    for (p, bound) in [
+        (Precision::F64, 1e-12),
+        (Precision::F32, 1e-5),
+        (Precision::Df64, 1e-11),
+    ] {
+        let mut jobs = batch(p);
+        jobs.extend(pendulum_batch(p));
+        for (n, gap, launched) in [(16, 0.0, 2), (17, 1e-6, 1), (33, 1e-5, 2), (64, 1e-6, 1)] {
+            let text =
+                format!("balls = {n}\ngap = {gap}\n[launch]\nballs = {launched}\nvelocity = 0.7");
+            jobs.push(job(&text, p, Some(1e-3)));
+        }
+        let (a, b) = (g.run(&jobs).unwrap(), wide.run(&jobs).unwrap());
+        if exact {
+            for (i, (x, y)) in a.iter().zip(&b).enumerate() {
+                assert_same(x, y, &format!("{} scene {i}", p.name()));
+            }
+        }
+        let worst = max_diff(&jobs, &a, &b);
+        assert!(worst <= bound, "{}: {worst:e}", p.name());
+    }
+    let st = wide.device_stats().unwrap();
+    assert!(st.dispatches >= 100, "{st:?}");
+}
+
 /// Workers refilled from the batch's queue (a fifth as many workers as
 /// scenes: each takes about five in turn) and dispatches cut to 7 loop rounds
 /// (each scene resumed across many dispatches, by another worker's successor
@@ -874,14 +930,17 @@ fn gpu_sweep_with_concurrent_calls_writes_the_cpu_bytes() {
 #[test]
 fn gpu_profiles_parse_with_clear_errors() {
     assert_eq!(Profile::parse("software").unwrap(), Profile::SOFTWARE);
-    let p = Profile::parse("hardware, batch=32768,calls=8,cpu_above=none,rounds=64,timed=false")
-        .unwrap();
+    let p = Profile::parse(
+        "hardware, batch=32768,calls=8,cpu_above=16,rounds=64,timed=false,wide_above=none",
+    )
+    .unwrap();
     assert_eq!(
         p,
         Profile {
             batch: 32768,
             calls: 8,
-            cpu_above: None,
+            cpu_above: Some(16),
+            wide_above: None,
             rounds: Some(64),
             timed: false,
             ..Profile::HARDWARE
@@ -894,6 +953,7 @@ fn gpu_profiles_parse_with_clear_errors() {
         ("hardware,batch=many", "batch=many: allowed 1..=1048576"),
         ("hardware,speed=2", "unknown key \"speed\"; keys: batch"),
         ("software,timed=yes", "allowed true or false"),
+        ("hardware,wide_above=0", "wide_above=0: allowed 1..=64"),
     ] {
         let e = Profile::parse(bad).unwrap_err().to_string();
         assert!(e.contains(says), "{bad}: {e}");

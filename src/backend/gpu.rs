@@ -21,8 +21,17 @@ use crate::engine::real::{Df64, Real};
 use crate::engine::{plan, simulate_chain, Chain, Outcome, Silent, Solver, UNSTEPPED};
 use crate::scene::Precision;
 
-/// The shader's body; its prelude comes from `layout::prelude`.
-pub const SHADER_BODY: &str = include_str!("../engine/integrate/integrate.wgsl");
+/// The shader's body (what both kernels share, then the kernel with an
+/// invocation per scene); its prelude comes from `layout::prelude`.
+pub const SHADER_BODY: &str = concat!(
+    include_str!("../engine/integrate/scene.wgsl"),
+    include_str!("../engine/integrate/integrate.wgsl")
+);
+/// The body of the kernel with a workgroup per scene (an invocation per body).
+pub const WIDE_BODY: &str = concat!(
+    include_str!("../engine/integrate/scene.wgsl"),
+    include_str!("../engine/integrate/wide.wgsl")
+);
 /// Threads per workgroup (`@workgroup_size` in the shader).
 const WORKGROUP: u32 = 64;
 /// Rounds (submissions of a few dispatches, then a look at the queue's
@@ -55,7 +64,8 @@ pub struct Profile {
     /// waits only for its own submissions.
     pub calls: usize,
     /// Scenes per worker (1: a worker per scene; k: n/k workers, each taking
-    /// about k scenes in turn).
+    /// about k scenes in turn); a workgroup per scene (`wide_above`) is
+    /// always a worker per scene.
     pub scenes_per_worker: u32,
     /// Loop rounds per worker and dispatch; `None`: by time (`timed`) or by
     /// llvmpipe's loop limit. On a software adapter [`dispatch_budget`] caps
@@ -64,24 +74,34 @@ pub struct Profile {
     /// Double or halve the rounds per dispatch to keep a round in `ROUND_S`.
     pub timed: bool,
     /// Chains of a size class above this run on the CPU engine, beside the
-    /// device: one GPU thread integrates a whole chain, so a 64-ball chain's
-    /// 10^5 steps take seconds there however idle the device is, and its
-    /// 64-body arrays spill to memory.
+    /// device (with an invocation per scene a 64-ball chain's 10^5 steps
+    /// take seconds however idle the device is; `wide_above` is the device's
+    /// answer to that, this the way to compare the two on a device).
     pub cpu_above: Option<usize>,
+    /// Chains of a size class above this run a workgroup per scene (an
+    /// invocation per body, `wide.wgsl`) instead of an invocation per scene:
+    /// a long chain's step then waits on one body's work and a few barriers
+    /// instead of a loop over the chain, and its state is in workgroup
+    /// memory instead of spilled arrays. Few such chains fill a device
+    /// poorly either way; this keeps each one's time short.
+    pub wide_above: Option<usize>,
 }
 
 impl Profile {
     /// 8,192 scenes a call, four calls at once, half as many workers as
     /// scenes (16,384 workers and 32,768 scenes resident; not yet tuned on a
-    /// GPU; host memory ~35 MB a call), paced by time; chains of more than 32
-    /// bodies on the CPU.
+    /// GPU; host memory ~35 MB a call), paced by time; chains of more than 16
+    /// bodies a workgroup per scene (stress.toml's 64-ball chains hold 97%
+    /// of its steps: on the CPU engine beside the device, as before, the GPU
+    /// backend took as long as the CPU backend).
     pub const HARDWARE: Profile = Profile {
         batch: 8_192,
         calls: 4,
         scenes_per_worker: 2,
         rounds: None,
         timed: true,
-        cpu_above: Some(32),
+        cpu_above: None,
+        wide_above: Some(16),
     };
     /// lavapipe runs on the cores the lanes use: the CPU's batch, one call at
     /// a time (two at once were 3× slower on grid100), a worker per scene,
@@ -93,6 +113,7 @@ impl Profile {
         rounds: None,
         timed: false,
         cpu_above: None,
+        wide_above: None,
     };
 
     /// `CRADLE_GPU_PROFILE`'s value, if set: `hardware` or `software`, then
@@ -117,7 +138,7 @@ impl Profile {
                 bail!("{other:?}: allowed values are hardware and software (then ,key=value pairs)")
             }
         };
-        const KEYS: &str = "batch (1..=1048576), calls (1..=64), scenes_per_worker (1..=1024), rounds (1..=65536 or auto), timed (true|false), cpu_above (2..=64 or none)";
+        const KEYS: &str = "batch (1..=1048576), calls (1..=64), scenes_per_worker (1..=1024), rounds (1..=65536 or auto), timed (true|false), cpu_above (2..=64 or none), wide_above (1..=64 or none)";
         for kv in parts {
             let Some((k, v)) = kv.split_once('=') else {
                 bail!("{kv:?}: expected key=value; keys: {KEYS}");
@@ -141,6 +162,8 @@ impl Profile {
                 }
                 "cpu_above" if v == "none" => p.cpu_above = None,
                 "cpu_above" => p.cpu_above = Some(int(2, 64)? as usize),
+                "wide_above" if v == "none" => p.wide_above = None,
+                "wide_above" => p.wide_above = Some(int(1, 64)? as usize),
                 _ => bail!("unknown key {k:?}; keys: {KEYS}"),
             }
         }
@@ -226,6 +249,12 @@ pub fn shader_source_sized(p: Precision, max_bodies: usize) -> Cow<'static, str>
     Cow::Owned(layout::prelude(p, max_bodies) + "\n" + &layout::body_for(SHADER_BODY, p))
 }
 
+/// The shader with a workgroup of `max_bodies` invocations per scene
+/// ([`WIDE_BODY`]) for one precision and chains of up to `max_bodies` bodies.
+pub fn shader_source_wide(p: Precision, max_bodies: usize) -> Cow<'static, str> {
+    Cow::Owned(layout::prelude(p, max_bodies) + "\n" + &layout::body_for(WIDE_BODY, p))
+}
+
 /// The shader for any chain (private arrays of `scene::MAX_BALLS`).
 pub fn shader_source(p: Precision) -> Cow<'static, str> {
     shader_source_sized(p, crate::scene::MAX_BALLS)
@@ -245,8 +274,8 @@ pub fn size_class(n_bodies: usize) -> usize {
         .unwrap_or(crate::scene::MAX_BALLS)
 }
 
-/// (precision, terms, size class).
-type PipeKey = (Precision, bool, usize);
+/// (precision, terms, size class, a workgroup per scene).
+type PipeKey = (Precision, bool, usize, bool);
 /// Outcomes with their places in a batch.
 type Placed = Vec<(usize, Outcome)>;
 /// Where a buffer's mapping for reading reports (`map_read`).
@@ -275,6 +304,19 @@ fn loops_per_step(ch: &Chain, n_weights: usize) -> usize {
     step.max(3 * nc + 32)
 }
 
+/// [`loops_per_step`] of the kernel with a workgroup per scene and `class`
+/// invocations: an invocation loops over its own body's work, invocation 0
+/// over a pendulum's positions, and every reduction over log2(class) levels
+/// (at most six a loop round).
+fn loops_per_step_wide(ch: &Chain, n_weights: usize, class: usize) -> usize {
+    let nb = ch.n_bodies();
+    let pend = if ch.is_pendulum() { nb + 11 } else { 0 };
+    let drag = if ch.air_drag > 0.0 { 50 } else { 0 };
+    let reductions = 6 * (class.trailing_zeros() as usize + 1);
+    let step = n_weights * (2 + pend + drag) + n_weights + reductions + 16;
+    step.max(reductions + 32)
+}
+
 /// [`loops_per_step`] a worker may run per dispatch on a software adapter.
 /// Measured on lavapipe (LLVM 15, 256-bit): the worker loop gave wrong
 /// outcomes on the 2–8-ball slice of examples/stress.toml from about 25,000
@@ -289,13 +331,25 @@ const LOOP_CAP: usize = 12_000;
 /// ([`LOOP_CAP`]; a worker's rounds over all the scenes it takes in one
 /// dispatch, one round charged per scene taken, stay within it; real GPUs
 /// have watchdogs instead, and are paced by time). At most 4096.
-pub fn dispatch_budget(jobs: &[(&Chain, &Solver)]) -> u32 {
+/// `wide`: the kernel with a workgroup of `class` invocations per scene.
+pub fn dispatch_budget(jobs: &[(&Chain, &Solver)], wide: Option<usize>) -> u32 {
     let worst = jobs
         .iter()
-        .map(|(ch, s)| loops_per_step(ch, crate::engine::solver::weights(s.method).len()))
+        .map(|(ch, s)| {
+            let nw = crate::engine::solver::weights(s.method).len();
+            match wide {
+                Some(class) => loops_per_step_wide(ch, nw, class),
+                None => loops_per_step(ch, nw),
+            }
+        })
         .max()
         .unwrap_or(1);
     (LOOP_CAP / worst).clamp(1, 4096) as u32
+}
+
+/// The most bodies of any chain in `jobs`.
+fn max_bodies(jobs: &[(&Chain, &Solver)]) -> usize {
+    jobs.iter().map(|(ch, _)| ch.n_bodies()).max().unwrap_or(2)
 }
 
 /// Which adapters a backend may use.
@@ -433,9 +487,19 @@ impl Gpu {
         };
         // Build the largest class now: a shader that does not build on this
         // adapter fails here, before any work, not in the middle of a sweep.
-        gpu.pipeline(Precision::F32, true, *SIZE_CLASSES.last().expect("a class"))?;
+        gpu.pipeline(
+            Precision::F32,
+            true,
+            *SIZE_CLASSES.last().expect("a class"),
+            false,
+        )?;
         if f64_ok {
-            gpu.pipeline(Precision::F64, true, *SIZE_CLASSES.last().expect("a class"))?;
+            gpu.pipeline(
+                Precision::F64,
+                true,
+                *SIZE_CLASSES.last().expect("a class"),
+                false,
+            )?;
         }
         Ok(gpu)
     }
@@ -450,8 +514,9 @@ impl Gpu {
         p: Precision,
         terms: bool,
         class: usize,
+        wide: bool,
     ) -> Result<Arc<wgpu::ComputePipeline>> {
-        let key = (p, terms, class);
+        let key = (p, terms, class, wide);
         let mut pipes = self.pipes.lock().unwrap_or_else(|e| e.into_inner());
         if let Some(pipe) = pipes.get(&key) {
             return Ok(pipe.clone());
@@ -461,7 +526,11 @@ impl Gpu {
         let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("integrate.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(shader_source_sized(p, class)),
+            source: wgpu::ShaderSource::Wgsl(if wide {
+                shader_source_wide(p, class)
+            } else {
+                shader_source_sized(p, class)
+            }),
         });
         let pipe = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
             label: Some("integrate"),
@@ -476,8 +545,9 @@ impl Gpu {
         });
         if let Some(e) = pollster::block_on(scope.pop()) {
             bail!(
-                "the {} shader (chains up to {class} bodies) does not build on {}: {e}",
+                "the {} shader (chains up to {class} bodies{}) does not build on {}: {e}",
                 p.name(),
+                if wide { ", a workgroup per scene" } else { "" },
                 self.info.name
             );
         }
@@ -506,12 +576,14 @@ impl Gpu {
 
     /// Integrate `jobs` (all valid) in precision `R`; one [`Run`] each, with
     /// its `dt` column ([`crate::engine::row_dt`] of the plan it ran with).
-    /// `terms`: some scene is a pendulum or dissipative (the general pipeline).
+    /// `terms`: some scene is a pendulum or dissipative (the general pipeline);
+    /// `wide`: a workgroup per scene.
     fn runs<R: Real + Pod>(
         &self,
         jobs: &[(&Chain, &Solver)],
         terms: bool,
         class: usize,
+        wide: bool,
     ) -> Result<Vec<(Run, f64)>> {
         let p = R::PRECISION;
         if p == Precision::F64 && !self.f64_ok {
@@ -520,11 +592,12 @@ impl Gpu {
                 self.info.name
             );
         }
-        let pipe = self.pipeline(p, terms, class)?;
+        let pipe = self.pipeline(p, terms, class, wide)?;
         let pipe = pipe.as_ref();
         // Parts small enough for the adapter: workgroups per dimension, and
         // the largest storage binding (params and state grow with N).
-        let max_scenes = (self.max_workgroups as usize) * WORKGROUP as usize;
+        let per_group = if wide { 1 } else { WORKGROUP as usize };
+        let max_scenes = (self.max_workgroups as usize) * per_group;
         let real = std::mem::size_of::<R>() as u64;
         let bytes = |(ch, s): &(&Chain, &Solver)| {
             let (nb, nw) = (
@@ -545,7 +618,7 @@ impl Gpu {
                 end += 1;
             }
             let end = end.max(start + 1);
-            out.extend(self.dispatch::<R>(pipe, &jobs[start..end])?);
+            out.extend(self.dispatch::<R>(pipe, &jobs[start..end], wide)?);
             start = end;
         }
         Ok(out)
@@ -555,6 +628,7 @@ impl Gpu {
         &self,
         pipe: &wgpu::ComputePipeline,
         jobs: &[(&Chain, &Solver)],
+        wide: bool,
     ) -> Result<Vec<(Run, f64)>> {
         let mut headers = Vec::with_capacity(jobs.len());
         let mut dts = Vec::with_capacity(jobs.len());
@@ -639,7 +713,7 @@ impl Gpu {
             state.extend([0.0, -1.0, -1.0, 0.0, 0.0, ch.x0[0], 0.0, 0.0].map(R::of));
             assert_eq!(state.len() - s0, layout::len(STATE, nb, nw));
         }
-        let (words, reals) = self.integrate::<R>(pipe, jobs, &headers, params, state)?;
+        let (words, reals) = self.integrate::<R>(pipe, jobs, &headers, params, state, wide)?;
         Ok(headers
             .iter()
             .zip(jobs)
@@ -696,6 +770,7 @@ impl Gpu {
         headers: &[GpuHeader],
         params: Vec<R>,
         state: Vec<R>,
+        wide: bool,
     ) -> Result<(Vec<u32>, Vec<R>)> {
         let n = headers.len() as u32;
         let d = &self.device;
@@ -714,8 +789,15 @@ impl Gpu {
                 mapped_at_creation: false,
             })
         };
-        let mut pace = self.pace(jobs);
-        let workers = n.div_ceil(self.profile.scenes_per_worker.max(1)).max(1);
+        let mut pace = self.pace(jobs, wide.then(|| size_class(max_bodies(jobs))));
+        // A workgroup per scene when wide: the device's own scheduler starts
+        // the next as one ends, and every long chain runs at once.
+        let per_worker = if wide {
+            1
+        } else {
+            self.profile.scenes_per_worker.max(1)
+        };
+        let workers = n.div_ceil(per_worker).max(1);
         let words0: Vec<u32> = (0..n)
             .flat_map(|_| {
                 WORDS
@@ -771,7 +853,12 @@ impl Gpu {
                 entry(5, &wbuf),
             ],
         });
-        let groups = workers.div_ceil(WORKGROUP);
+        // A workgroup per worker when wide, else WORKGROUP workers a group.
+        let groups = if wide {
+            workers
+        } else {
+            workers.div_ceil(WORKGROUP)
+        };
         type Pending = (wgpu::SubmissionIndex, usize, Mapping);
         let mut in_flight: std::collections::VecDeque<Pending> = Default::default();
         let mut slot = 0;
@@ -838,10 +925,10 @@ impl Gpu {
     }
 
     /// How this batch is paced: rounds per dispatch and dispatches per round.
-    fn pace(&self, jobs: &[(&Chain, &Solver)]) -> Pace {
+    fn pace(&self, jobs: &[(&Chain, &Solver)], wide: Option<usize>) -> Pace {
         let pr = self.profile;
         let most = if self.info.device_type == wgpu::DeviceType::Cpu {
-            dispatch_budget(jobs)
+            dispatch_budget(jobs, wide)
         } else {
             u32::MAX
         };
@@ -1037,12 +1124,14 @@ impl Backend for Gpu {
         let (cpu, gpu): (Vec<_>, Vec<_>) = groups
             .into_iter()
             .partition(|((_, _, class), _)| self.profile.cpu_above.is_some_and(|m| *class > m));
+        let wide = |class: usize| self.profile.wide_above.is_some_and(|m| class > m);
         let group = |((p, terms, class), idx): ((Precision, bool, usize), Vec<usize>)| {
             let batch: Vec<(&Chain, &Solver)> = idx.iter().map(|&k| runs_in[k]).collect();
+            let w = wide(class);
             let runs = match p {
-                Precision::F32 => self.runs::<f32>(&batch, terms, class)?,
-                Precision::F64 => self.runs::<f64>(&batch, terms, class)?,
-                Precision::Df64 => self.runs::<Df64>(&batch, terms, class)?,
+                Precision::F32 => self.runs::<f32>(&batch, terms, class, w)?,
+                Precision::F64 => self.runs::<f64>(&batch, terms, class, w)?,
+                Precision::Df64 => self.runs::<Df64>(&batch, terms, class, w)?,
             };
             Ok(idx
                 .into_iter()
