@@ -177,8 +177,8 @@ fn forces() {
 
 // engine::integrate::graded_steps (see integrate.wgsl) — contact me's cap and
 // kink distance, the least of each over the chain.
+// (plan_steps's barrier: velocities, forces and accelerations are written)
 fn graded_step(s0: real, h: real, h_min: real, tc: real, quarters: u32) -> real {
-    workgroupBarrier(); // velocities, forces and accelerations are written
     let big = real(FINITE_LIMIT);
     var cap = big;
     var near = big;
@@ -254,8 +254,8 @@ fn graded_step(s0: real, h: real, h_min: real, tc: real, quarters: u32) -> real 
 }
 
 // engine::integrate::stiffness_cap — contact me's term of Λ, the largest over the chain.
+// (plan_steps's barrier: overlaps are written)
 fn stiffness_cap(s0: real, h_stiff: real, h_min: real) -> real {
-    workgroupBarrier(); // overlaps are written
     var x = real(0.0);
     if (me < nc) {
         let dp = r_max(wd[me], real(0.0));
@@ -524,7 +524,8 @@ fn substeps() {
         forces();
         kick(r_mul(params[k0 + wi + 1u], hstep));
     }
-    closed = any_closed();
+    // `closed` (whether a contact is closed after the step) is counted in
+    // `account`'s reduction: the kink correction moves no overlap.
 }
 
 // engine::integrate::Lanes::account — time, onsets, overlaps, releases, the
@@ -575,10 +576,13 @@ fn account() -> bool {
     if (me < nb) {
         finite = r_lt(r_abs(wv[me]), real(FINITE_LIMIT));
     }
+    let shut = me < nc && r_gt(wd[me], real(0.0));
     // Maxima against their starting values (max_ov, max_ratio ≥ 0 and
-    // t_release ≥ −1 always): 0, 0 and −1 change nothing. u: onsets, and
-    // 256 per non-finite velocity.
-    let all = reduce(Red(mo, mr, rel, select(0u, 1u, onset) + select(0u, 256u, !finite)), RED_MAX);
+    // t_release ≥ −1 always): 0, 0 and −1 change nothing. u: onsets, 256 per
+    // non-finite velocity, 65,536 per closed contact.
+    let flags = select(0u, 1u, onset) + select(0u, 256u, !finite) + select(0u, 65536u, shut);
+    let all = reduce(Red(mo, mr, rel, flags), RED_MAX);
+    closed = (all.u >> 16u) > 0u;
     let onsets = all.u & 255u;
     contacts += onsets;
     if (onsets > 0u && r_lt(t_first, real(0.0))) {
@@ -587,7 +591,7 @@ fn account() -> bool {
     max_ov = r_max(max_ov, all.a);
     max_ratio = r_max(max_ratio, all.b);
     t_release = r_max(t_release, all.c);
-    return (all.u >> 8u) == 0u;
+    return ((all.u >> 8u) & 255u) == 0u;
 }
 
 // engine::integrate::Lanes::finish — the state back to the buffers: each
