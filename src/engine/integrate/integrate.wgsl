@@ -112,68 +112,23 @@ fn graded_step(s0: real, h: real, h_min: real, tc: real, quarters: u32) -> real 
         if (pend) {
             a = r_add(a, r_sub(acc[c], acc[c + 1u]));
         }
-        // Distance to the kink, and speed and acceleration towards it: the
-        // kink ahead at the first root of dd − rr·t − aa·t²/2, the one
-        // behind (moving away) dd/|rr| ago.
-        let dd = r_abs(dc);
-        var rr = r;
-        var aa = a;
-        if (r_gt(dc, real(0.0))) {
-            rr = r_neg(r);
-            aa = r_neg(a);
-        }
-        let disc = r_add(r_mul(rr, rr), r_mul(r_add(aa, aa), dd));
-        let den = r_add(rr, r_sqrt(r_max(disc, real(0.0))));
-        var has_ahead = false;
-        var ahead = real(0.0);
-        if (r_ge(disc, real(0.0)) && r_gt(den, real(0.0))) {
-            has_ahead = true;
-            ahead = r_div(r_add(dd, dd), den);
-        }
-        let has_behind = r_lt(rr, real(0.0));
-        var behind = real(0.0);
-        if (has_behind) {
-            behind = r_div(dd, r_neg(rr));
-        }
-        if (!has_ahead && !has_behind) {
-            continue; // no kink in reach
-        }
-        // Halve the distance to a kink ahead, at most double the distance from
-        // one behind: no substep reaches across a kink until the step is h_min.
-        var tk = ahead;
-        var cc = r_mul(ahead, real(0.5));
-        if (!has_ahead) {
-            tk = behind;
-            cc = r_add(behind, behind);
-        } else if (has_behind) {
-            tk = r_min(ahead, behind);
-            cc = r_min(r_mul(ahead, real(0.5)), r_add(behind, behind));
-        }
-        if (r_ge(tk, r_add(s0, s0))) {
-            continue; // no restriction from this contact
+        let kink = kink_reach(r, dc, a, s0);
+        if (!kink.restricts) {
+            continue; // no kink in reach, or none nearer than 2·s0
         }
         if (any) {
-            cap = r_min(cap, cc);
-            near = r_min(near, tk);
+            cap = r_min(cap, kink.cap);
+            near = r_min(near, kink.near);
         } else {
-            cap = cc;
-            near = tk;
+            cap = kink.cap;
+            near = kink.near;
             any = true;
         }
     }
     if (!any) {
         return s0;
     }
-    var graded = cap;
-    if (r_lt(near, tc)) {
-        let q = r_sqrt(r_sqrt(r_div(near, tc)));
-        var gr = real(1.0);
-        for (var j = 0u; j < quarters; j++) {
-            gr = r_mul(gr, q);
-        }
-        graded = r_min(cap, r_mul(h, gr));
-    }
-    return r_min(s0, r_max(graded, h_min));
+    return graded_from(cap, near, s0, h, h_min, tc, quarters);
 }
 
 // engine::integrate::stiffness_cap — s0, at most h_stiff/Λ^{1/4} (not below
@@ -187,13 +142,7 @@ fn stiffness_cap(s0: real, h_stiff: real, h_min: real) -> real {
         right = r_mul(stiff_r[c], dp);
     }
     let lm = r_max(lam, right);
-    if (r_gt(lm, real(0.0)) && r_gt(h_stiff, real(0.0))) {
-        let cap = r_max(r_div(h_stiff, r_sqrt(r_sqrt(lm))), h_min);
-        if (r_lt(cap, s0)) {
-            return cap;
-        }
-    }
-    return s0;
+    return stiffness_from(lm, s0, h_stiff, h_min);
 }
 
 // Closed-form impact results: time taken, largest overlap.
@@ -355,16 +304,7 @@ fn ready() -> u32 {
             }
         }
     }
-    if (pend && r_ge(tt[0], max_time)) {
-        return END_DURATION;
-    }
-    if (steps >= hd.max_steps) {
-        return END_STEP_CAP;
-    }
-    if (r_ge(tt[0], max_time)) {
-        return END_TIME_CAP;
-    }
-    return END_RUNNING;
+    return end_check();
 }
 
 // engine::integrate::Lanes::plan_steps — the step: graded near kinks; on a

@@ -234,3 +234,100 @@ fn finish_scene(i: u32, end: u32) {
     out_u32[N_WORDS * i + W_STEPS] = steps;
     out_u32[N_WORDS * i + W_CONTACTS] = contacts;
 }
+
+// A contact's kink: whether it restricts a step of at most s0, the cap it
+// sets and its time distance (the loop body of engine::integrate::graded_steps),
+// from the pair's closing speed r, overlap dc and relative acceleration a.
+struct Reach {
+    restricts: bool,
+    cap: real,
+    near: real,
+}
+
+fn kink_reach(r: real, dc: real, a: real, s0: real) -> Reach {
+    let zero = real(0.0);
+    // Distance to the kink, and speed and acceleration towards it: the
+    // kink ahead at the first root of dd − rr·t − aa·t²/2, the one
+    // behind (moving away) dd/|rr| ago.
+    let dd = r_abs(dc);
+    var rr = r;
+    var aa = a;
+    if (r_gt(dc, real(0.0))) {
+        rr = r_neg(r);
+        aa = r_neg(a);
+    }
+    let disc = r_add(r_mul(rr, rr), r_mul(r_add(aa, aa), dd));
+    let den = r_add(rr, r_sqrt(r_max(disc, real(0.0))));
+    var has_ahead = false;
+    var ahead = real(0.0);
+    if (r_ge(disc, real(0.0)) && r_gt(den, real(0.0))) {
+        has_ahead = true;
+        ahead = r_div(r_add(dd, dd), den);
+    }
+    let has_behind = r_lt(rr, real(0.0));
+    var behind = real(0.0);
+    if (has_behind) {
+        behind = r_div(dd, r_neg(rr));
+    }
+    if (!has_ahead && !has_behind) {
+        return Reach(false, zero, zero); // no kink in reach
+    }
+    // Halve the distance to a kink ahead, at most double the distance from
+    // one behind: no substep reaches across a kink until the step is h_min.
+    var tk = ahead;
+    var cc = r_mul(ahead, real(0.5));
+    if (!has_ahead) {
+        tk = behind;
+        cc = r_add(behind, behind);
+    } else if (has_behind) {
+        tk = r_min(ahead, behind);
+        cc = r_min(r_mul(ahead, real(0.5)), r_add(behind, behind));
+    }
+    if (r_ge(tk, r_add(s0, s0))) {
+        return Reach(false, zero, zero); // no restriction from this contact
+    }
+    return Reach(true, cc, tk);
+}
+
+// The step a kink `near` away (capping at `cap`) allows: h·(near/tc)^(q/4)
+// within tc of it, at most s0, never below h_min (the end of
+// engine::integrate::graded_steps).
+fn graded_from(cap: real, near: real, s0: real, h: real, h_min: real, tc: real, quarters: u32) -> real {
+    var graded = cap;
+    if (r_lt(near, tc)) {
+        let q = r_sqrt(r_sqrt(r_div(near, tc)));
+        var gr = real(1.0);
+        for (var j = 0u; j < quarters; j++) {
+            gr = r_mul(gr, q);
+        }
+        graded = r_min(cap, r_mul(h, gr));
+    }
+    return r_min(s0, r_max(graded, h_min));
+}
+
+// s0, at most h_stiff/Λ^{1/4} (not below h_min) for the chain's bound Λ = lm
+// (the end of engine::integrate::stiffness_cap).
+fn stiffness_from(lm: real, s0: real, h_stiff: real, h_min: real) -> real {
+    if (r_gt(lm, real(0.0)) && r_gt(h_stiff, real(0.0))) {
+        let cap = r_max(r_div(h_stiff, r_sqrt(r_sqrt(lm))), h_min);
+        if (r_lt(cap, s0)) {
+            return cap;
+        }
+    }
+    return s0;
+}
+
+// The end checks of engine::integrate::Lanes::ready after any free flight:
+// a pendulum's duration, the step cap, the time cap; else END_RUNNING.
+fn end_check() -> u32 {
+    if (pend && r_ge(tt[0], max_time)) {
+        return END_DURATION;
+    }
+    if (steps >= hd.max_steps) {
+        return END_STEP_CAP;
+    }
+    if (r_ge(tt[0], max_time)) {
+        return END_TIME_CAP;
+    }
+    return END_RUNNING;
+}

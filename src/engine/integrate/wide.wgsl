@@ -198,40 +198,10 @@ fn graded_step(s0: real, h: real, h_min: real, tc: real, quarters: u32) -> real 
         if (pend) {
             a = r_add(a, r_sub(wacc[c], wacc[c + 1u]));
         }
-        let dd = r_abs(dc);
-        var rr = r;
-        var aa = a;
-        if (r_gt(dc, real(0.0))) {
-            rr = r_neg(r);
-            aa = r_neg(a);
-        }
-        let disc = r_add(r_mul(rr, rr), r_mul(r_add(aa, aa), dd));
-        let den = r_add(rr, r_sqrt(r_max(disc, real(0.0))));
-        var has_ahead = false;
-        var ahead = real(0.0);
-        if (r_ge(disc, real(0.0)) && r_gt(den, real(0.0))) {
-            has_ahead = true;
-            ahead = r_div(r_add(dd, dd), den);
-        }
-        let has_behind = r_lt(rr, real(0.0));
-        var behind = real(0.0);
-        if (has_behind) {
-            behind = r_div(dd, r_neg(rr));
-        }
-        if (has_ahead || has_behind) {
-            var tk = ahead;
-            var cc = r_mul(ahead, real(0.5));
-            if (!has_ahead) {
-                tk = behind;
-                cc = r_add(behind, behind);
-            } else if (has_behind) {
-                tk = r_min(ahead, behind);
-                cc = r_min(r_mul(ahead, real(0.5)), r_add(behind, behind));
-            }
-            if (!r_ge(tk, r_add(s0, s0))) {
-                cap = cc;
-                near = tk;
-            }
+        let kink = kink_reach(r, dc, a, s0);
+        if (kink.restricts) {
+            cap = kink.cap;
+            near = kink.near;
         }
     }
     let least = reduce(Red(cap, near, big, 0u), RED_MIN);
@@ -239,18 +209,7 @@ fn graded_step(s0: real, h: real, h_min: real, tc: real, quarters: u32) -> real 
     if (!r_lt(least.b, big)) {
         return s0;
     }
-    cap = least.a;
-    near = least.b;
-    var graded = cap;
-    if (r_lt(near, tc)) {
-        let q = r_sqrt(r_sqrt(r_div(near, tc)));
-        var gr = real(1.0);
-        for (var j = 0u; j < quarters; j++) {
-            gr = r_mul(gr, q);
-        }
-        graded = r_min(cap, r_mul(h, gr));
-    }
-    return r_min(s0, r_max(graded, h_min));
+    return graded_from(least.a, least.b, s0, h, h_min, tc, quarters);
 }
 
 // engine::integrate::stiffness_cap — contact me's term of Λ, the largest over the chain.
@@ -269,13 +228,7 @@ fn stiffness_cap(s0: real, h_stiff: real, h_min: real) -> real {
         }
     }
     let lm = reduce(Red(x, x, x, 0u), RED_MAX).a;
-    if (r_gt(lm, real(0.0)) && r_gt(h_stiff, real(0.0))) {
-        let cap = r_max(r_div(h_stiff, r_sqrt(r_sqrt(lm))), h_min);
-        if (r_lt(cap, s0)) {
-            return cap;
-        }
-    }
-    return s0;
+    return stiffness_from(lm, s0, h_stiff, h_min);
 }
 
 // Closed-form impact results: taken, time taken, largest overlap.
@@ -458,16 +411,7 @@ fn ready() -> u32 {
             }
         }
     }
-    if (pend && r_ge(tt[0], max_time)) {
-        return END_DURATION;
-    }
-    if (steps >= hd.max_steps) {
-        return END_STEP_CAP;
-    }
-    if (r_ge(tt[0], max_time)) {
-        return END_TIME_CAP;
-    }
-    return END_RUNNING;
+    return end_check();
 }
 
 // engine::integrate::Lanes::plan_steps — the step (integrate.wgsl's
