@@ -246,13 +246,18 @@ impl Tracker {
 /// bodies: the generated prelude (types, layout, codes, constants, the
 /// private arrays' size), then the body.
 pub fn shader_source_sized(p: Precision, max_bodies: usize) -> Cow<'static, str> {
-    Cow::Owned(layout::prelude(p, max_bodies) + "\n" + &layout::body_for(SHADER_BODY, p))
+    assemble(p, max_bodies, SHADER_BODY)
+}
+
+/// The prelude for `p` and `max_bodies`, then `body` in precision `p`.
+fn assemble(p: Precision, max_bodies: usize, body: &str) -> Cow<'static, str> {
+    Cow::Owned(layout::prelude(p, max_bodies) + "\n" + &layout::body_for(body, p))
 }
 
 /// The shader with a workgroup of `max_bodies` invocations per scene
 /// ([`WIDE_BODY`]) for one precision and chains of up to `max_bodies` bodies.
 pub fn shader_source_wide(p: Precision, max_bodies: usize) -> Cow<'static, str> {
-    Cow::Owned(layout::prelude(p, max_bodies) + "\n" + &layout::body_for(WIDE_BODY, p))
+    assemble(p, max_bodies, WIDE_BODY)
 }
 
 /// The shader for any chain (private arrays of `scene::MAX_BALLS`).
@@ -345,11 +350,6 @@ pub fn dispatch_budget(jobs: &[(&Chain, &Solver)], wide: Option<usize>) -> u32 {
         .max()
         .unwrap_or(1);
     (LOOP_CAP / worst).clamp(1, 4096) as u32
-}
-
-/// The most bodies of any chain in `jobs`.
-fn max_bodies(jobs: &[(&Chain, &Solver)]) -> usize {
-    jobs.iter().map(|(ch, _)| ch.n_bodies()).max().unwrap_or(2)
 }
 
 /// Which adapters a backend may use.
@@ -618,7 +618,7 @@ impl Gpu {
                 end += 1;
             }
             let end = end.max(start + 1);
-            out.extend(self.dispatch::<R>(pipe, &jobs[start..end], wide)?);
+            out.extend(self.dispatch::<R>(pipe, &jobs[start..end], wide.then_some(class))?);
             start = end;
         }
         Ok(out)
@@ -628,7 +628,7 @@ impl Gpu {
         &self,
         pipe: &wgpu::ComputePipeline,
         jobs: &[(&Chain, &Solver)],
-        wide: bool,
+        wide: Option<usize>,
     ) -> Result<Vec<(Run, f64)>> {
         let mut headers = Vec::with_capacity(jobs.len());
         let mut dts = Vec::with_capacity(jobs.len());
@@ -770,7 +770,7 @@ impl Gpu {
         headers: &[GpuHeader],
         params: Vec<R>,
         state: Vec<R>,
-        wide: bool,
+        wide: Option<usize>,
     ) -> Result<(Vec<u32>, Vec<R>)> {
         let n = headers.len() as u32;
         let d = &self.device;
@@ -789,10 +789,10 @@ impl Gpu {
                 mapped_at_creation: false,
             })
         };
-        let mut pace = self.pace(jobs, wide.then(|| size_class(max_bodies(jobs))));
+        let mut pace = self.pace(jobs, wide);
         // A workgroup per scene when wide: the device's own scheduler starts
         // the next as one ends, and every long chain runs at once.
-        let per_worker = if wide {
+        let per_worker = if wide.is_some() {
             1
         } else {
             self.profile.scenes_per_worker.max(1)
@@ -854,7 +854,7 @@ impl Gpu {
             ],
         });
         // A workgroup per worker when wide, else WORKGROUP workers a group.
-        let groups = if wide {
+        let groups = if wide.is_some() {
             workers
         } else {
             workers.div_ceil(WORKGROUP)
