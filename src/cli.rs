@@ -5,8 +5,11 @@ use std::path::PathBuf;
 
 use clap::{Parser, Subcommand, ValueEnum};
 
-use crate::engine::{Model, Overrides};
-use crate::error::InputError;
+use crate::backend::BackendChoice;
+use crate::choice::Choice;
+use crate::engine::Model;
+use crate::output::TableKind;
+use crate::request::{RunSettings, SolverSettings, SweepRequest, SweepSettings};
 use crate::scene::{Method, Precision};
 
 #[derive(Parser, Debug)]
@@ -122,7 +125,7 @@ pub enum Command {
     Scenes,
 }
 
-/// `cradle slurm`'s raw flags; [`crate::config::slurm_plan`] checks them.
+/// `cradle slurm`'s raw flags; [`crate::slurm::plan`] checks them.
 #[derive(clap::Args, Debug, Clone)]
 #[command(
     after_help = "Writes DIR/array.sbatch (one task per shard), DIR/merge.sbatch (checks that every\nshard finished, then merges) and DIR/submit.sh (submits both, the merge after the array).\n\nExamples:\n  cradle slurm examples/mass_gap.toml --shards 8 --time 00:30:00 && slurm-mass_gap/submit.sh\n  cradle slurm big.toml --shards 64 --gpus-per-task 1 --partition gpu --out big.csv\n  sbatch --array=5 slurm-big/array.sbatch     # resubmit shard 5 alone; it resumes"
@@ -158,7 +161,7 @@ pub struct SlurmArgs {
     pub solver: SolverFlags,
 }
 
-/// `cradle sweep`'s raw flags; [`crate::config::SweepConfig`] checks them.
+/// `cradle sweep`'s raw flags; [`SweepArgs::request`] checks them.
 #[derive(clap::Args, Debug, Clone)]
 #[command(
     after_help = "Examples:\n  cradle sweep examples/mass_gap.toml --out results/mass_gap.csv\n  cradle sweep big.toml --out big.csv --resume\n  cradle sweep big.toml --out part2.csv --shard 2/4   # then: cradle merge part*.csv --out big.csv"
@@ -196,114 +199,28 @@ pub struct SweepArgs {
     pub solver: SolverFlags,
 }
 
-/// What a sweep table is written as.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
-pub enum TableKind {
-    Csv,
-    Parquet,
-}
-
-impl TableKind {
-    /// The format `--format` names, else the one `path`'s extension names.
-    pub fn resolve(given: Option<TableKind>, path: &std::path::Path) -> TableKind {
-        given.unwrap_or_else(|| {
-            let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("");
-            if ext.eq_ignore_ascii_case("parquet") || ext.eq_ignore_ascii_case("pq") {
-                TableKind::Parquet
-            } else {
-                TableKind::Csv
-            }
-        })
-    }
-}
-
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
-pub enum BackendChoice {
-    Auto,
-    Gpu,
-    Cpu,
-}
-
-/// Parse `K/N` with 1 ≤ K ≤ N, or `slurm`: this task of a Slurm job array
-/// (K = SLURM_ARRAY_TASK_ID − SLURM_ARRAY_TASK_MIN + 1, N = SLURM_ARRAY_TASK_COUNT).
-pub fn parse_shard(s: &str) -> Result<(u64, u64), InputError> {
-    if s == "slurm" {
-        return slurm_shard(|k| std::env::var(k).ok());
-    }
-    let bad = || {
-        flag(
-            "--shard",
-            s,
-            "K/N with integers 1 ≤ K ≤ N, e.g. 2/4, or slurm",
-        )
-    };
-    let (k, n) = s.split_once('/').ok_or_else(bad)?;
-    let (k, n): (u64, u64) = (
-        k.trim().parse().map_err(|_| bad())?,
-        n.trim().parse().map_err(|_| bad())?,
-    );
-    if k == 0 || n == 0 || k > n {
-        return Err(bad());
-    }
-    Ok((k, n))
-}
-
-/// `--shard slurm` from the job-array variables `env` gives.
-pub fn slurm_shard(env: impl Fn(&str) -> Option<String>) -> Result<(u64, u64), InputError> {
-    let var = |k: &str| -> Result<u64, InputError> {
-        let v = env(k).ok_or_else(|| {
-            flag(
-                "--shard",
-                "slurm",
-                &format!("needs {k}: run it as a task of a Slurm job array (sbatch --array=1-N), or give K/N"),
-            )
-        })?;
-        v.trim()
-            .parse()
-            .map_err(|_| flag("--shard", "slurm", &format!("{k}={v:?} is not an integer")))
-    };
-    let (id, count) = (var("SLURM_ARRAY_TASK_ID")?, var("SLURM_ARRAY_TASK_COUNT")?);
-    let min = match env("SLURM_ARRAY_TASK_MIN") {
-        Some(_) => var("SLURM_ARRAY_TASK_MIN")?,
-        None => 1,
-    };
-    let k = (id + 1)
-        .checked_sub(min)
-        .filter(|k| (1..=count).contains(k));
-    match k {
-        Some(k) => Ok((k, count)),
-        None => Err(flag(
-            "--shard",
-            "slurm",
-            &format!("task {id} of an array of {count} from {min}: outside 1..={count}"),
-        )),
-    }
-}
-
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum Format {
     Table,
     Csv,
 }
 
-/// The closed sets of the solver flags, as clap values: their names are the
-/// ones the scene files use (`Method::name`, …), and a bad value gets clap's
+/// The core's closed sets ([`Choice`]) as clap values: their names are the
+/// ones the files use (`Method::name`, …), and a bad value gets clap's
 /// message with the possible values (exit 2).
 macro_rules! value_enum {
-    ($t:ty, $all:expr) => {
+    ($($t:ty),*) => {$(
         impl ValueEnum for $t {
             fn value_variants<'a>() -> &'a [Self] {
-                &$all
+                <$t as Choice>::ALL
             }
             fn to_possible_value(&self) -> Option<clap::builder::PossibleValue> {
-                Some(clap::builder::PossibleValue::new(self.name()))
+                Some(clap::builder::PossibleValue::new(Choice::name(*self)))
             }
         }
-    };
+    )*};
 }
-value_enum!(Method, Method::ALL);
-value_enum!(Precision, [Precision::F32, Precision::F64, Precision::Df64]);
-value_enum!(Model, Model::ALL);
+value_enum!(Method, Precision, Model, BackendChoice, TableKind);
 
 /// Solver settings from the command line (a file's `[solver]` may give them
 /// too; the two must agree: `config`).
@@ -342,39 +259,53 @@ impl SolverFlags {
         a
     }
 
-    pub fn overrides(&self) -> Result<Overrides, InputError> {
-        let tolerance = match self.tolerance {
-            None => None,
-            Some(t) if t.is_finite() && t > 0.0 && t < 1.0 => Some(t),
-            Some(t) => {
-                return Err(flag(
-                    "--tolerance",
-                    &t.to_string(),
-                    "the tolerance must be > 0 and < 1 (a relative error, e.g. 1e-6)",
-                ))
-            }
-        };
-        Ok(Overrides {
+    /// The flags as the core's unchecked settings.
+    pub fn settings(&self) -> SolverSettings {
+        SolverSettings {
+            precision: self.precision,
+            tolerance: self.tolerance,
             model: self.model,
             method: self.method,
-            precision: self.precision,
-            tolerance,
-        })
+        }
     }
 }
 
-pub use crate::error::flag;
-
-#[cfg(test)]
-mod tests {
-    #[test]
-    fn shards_parse() {
-        assert_eq!(super::parse_shard("2/4").unwrap(), (2, 4));
-        for bad in ["0/4", "5/4", "2", "a/b", "1/0"] {
-            assert!(super::parse_shard(bad).is_err(), "{bad}");
+impl SweepArgs {
+    /// The flags as the core's unchecked settings.
+    pub fn settings(&self) -> SweepSettings {
+        SweepSettings {
+            backend: self.backend,
+            resume: self.resume,
+            shard: self.shard.clone(),
+            threads: self.threads,
+            format: self.format,
+            error_estimate: self.error_estimate,
+            solver: self.solver.settings(),
         }
     }
 
+    /// The checked sweep: every check (flags, the sweep file, the output
+    /// path, flags against the file) before any work or any GPU start-up.
+    pub fn request(&self) -> Result<SweepRequest, crate::InputError> {
+        SweepRequest::from_file(&self.sweep, &self.out, &self.settings())
+    }
+}
+
+/// `cradle run`'s settings from its flags.
+pub fn run_settings(
+    trace: Option<PathBuf>,
+    trace_dt: Option<f64>,
+    solver: &SolverFlags,
+) -> RunSettings {
+    RunSettings {
+        solver: solver.settings(),
+        trace,
+        trace_dt,
+    }
+}
+
+#[cfg(test)]
+mod tests {
     #[test]
     fn clap_definition_is_consistent() {
         use clap::CommandFactory;

@@ -6,15 +6,14 @@ use std::process::ExitCode;
 
 use clap::Parser;
 
-use hertz_cradle::cli::{Cli, Command, Format};
-use hertz_cradle::config::{slurm_plan, RunConfig, SweepConfig};
+use hertz_cradle::cli::{run_settings, Cli, Command, Format};
 use hertz_cradle::output::guard;
 use hertz_cradle::output::lock::OutputLock;
 use hertz_cradle::output::merge::merge;
 use hertz_cradle::output::row;
 use hertz_cradle::plot;
 use hertz_cradle::scene::builtin;
-use hertz_cradle::InputError;
+use hertz_cradle::{Hooks, InputError, RunRequest};
 
 fn main() -> ExitCode {
     hertz_cradle::backend::gpu::quiet_mesa_without_session();
@@ -47,10 +46,17 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Sweep(args) => {
             // Every check (flags, the sweep file, the output path, flags
             // against the file) before any work or any GPU start-up.
-            let cfg = SweepConfig::from_args(&args)?;
-            let s =
-                hertz_cradle::sweep::run::execute(&cfg, std::env::args().collect(), true, None)?;
-            let out = cfg.out_given.display();
+            let req = args.request()?;
+            let bar = hertz_cradle::progress::Bar::stderr(true);
+            let s = req
+                .run(Hooks {
+                    command: std::env::args().collect(),
+                    on_progress: Some(bar.callback()),
+                    ..Hooks::default()
+                })
+                .map_err(|e| e.into_anyhow())?;
+            drop(bar);
+            let out = req.out_given.display();
             if s.already_complete {
                 eprintln!("cradle: {out} is already complete; nothing to resume");
             } else {
@@ -110,18 +116,12 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 }
                 .into());
             };
-            let tmp = guard::with_suffix(&target, ".tmp");
-            let mut w = std::io::BufWriter::new(
-                std::fs::File::create(&tmp)
-                    .map_err(|e| anyhow::anyhow!("cannot create {}: {e}", tmp.display()))?,
-            );
-            let n = hertz_cradle::output::fill::fill(&table, &g, &mut |row| {
-                w.write_all(row)
-                    .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", tmp.display()))
+            let n = hertz_cradle::output::publish::write_with(&target, |w| {
+                hertz_cradle::output::fill::fill(&table, &g, &mut |row| {
+                    w.write_all(row)
+                        .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", target.display()))
+                })
             })?;
-            w.flush()?;
-            drop(w);
-            std::fs::rename(&tmp, &target)?;
             eprintln!("cradle: {n} rows -> {}", target.display());
             Ok(())
         }
@@ -157,7 +157,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             Ok(())
         }
         Command::Slurm(args) => {
-            let plan = slurm_plan(&args)?;
+            let plan = hertz_cradle::slurm::plan(&args)?;
             for p in hertz_cradle::slurm::write(&plan)? {
                 eprintln!("cradle: wrote {}", p.display());
             }
@@ -181,11 +181,12 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             trace_dt,
             solver,
         } => {
-            let cfg = RunConfig::from_args(&scene, format, trace.as_deref(), trace_dt, &solver)?;
-            let outcome = cfg.execute()?;
+            let cfg = RunRequest::from_name(&scene, &run_settings(trace, trace_dt, &solver))
+                .map_err(|e| e.into_anyhow())?;
+            let outcome = cfg.run().map_err(|e| e.into_anyhow())?;
             let chain = &cfg.chain;
             let mut out = std::io::stdout().lock();
-            match cfg.format {
+            match format {
                 Format::Table => write!(
                     out,
                     "{}",

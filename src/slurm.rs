@@ -17,6 +17,60 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 
+use crate::cli::SlurmArgs;
+use crate::error::flag;
+use crate::output::guard;
+use crate::output::partial::COMPANIONS;
+use crate::sweep::Sweep;
+
+/// A checked `cradle slurm`: everything a task would refuse is refused now,
+/// not on the cluster (flags against the file, the merged output's path,
+/// the solver, the shard count).
+pub fn plan(a: &SlurmArgs) -> Result<Plan> {
+    let spec = Sweep::load(&a.sweep)?;
+    let overrides = a.solver.settings().overrides()?;
+    spec.check_overrides(&overrides)?;
+    crate::engine::Solver::resolve(&spec.base, &overrides)?;
+    if let Some(o) = &a.out {
+        guard::output("--out", o, &spec.inputs, COMPANIONS)?;
+    }
+    if a.shards == 0 || a.shards > spec.total {
+        return Err(flag(
+            "--shards",
+            &a.shards.to_string(),
+            &format!("1 ..= {} (the sweep's scenes)", spec.total),
+        )
+        .into());
+    }
+    let stem = a
+        .sweep
+        .file_stem()
+        .unwrap_or_default()
+        .to_string_lossy()
+        .to_string();
+    Ok(Plan {
+        out: a
+            .out
+            .clone()
+            .unwrap_or_else(|| format!("{stem}.csv").into()),
+        dir: a
+            .dir
+            .clone()
+            .unwrap_or_else(|| format!("slurm-{stem}").into()),
+        sweep: a.sweep.clone(),
+        shards: a.shards,
+        partition: a.partition.clone(),
+        gpus_per_task: a.gpus_per_task,
+        cpus_per_task: a.cpus_per_task,
+        time: a.time.clone(),
+        cradle: match &a.cradle {
+            Some(c) => c.clone(),
+            None => std::env::current_exe()?,
+        },
+        flags: a.solver.args(),
+    })
+}
+
 pub struct Plan {
     pub sweep: PathBuf,
     pub shards: u64,

@@ -889,7 +889,8 @@ fn gpu_matches_cpu_on_the_stress_slice() {
 /// paced by time): the committed CPU table byte for byte.
 #[test]
 fn gpu_sweep_with_concurrent_calls_writes_the_cpu_bytes() {
-    use hertz_cradle::sweep::run::{run, Options};
+    use hertz_cradle::sweep::run::run;
+    use hertz_cradle::sweep::session::Options;
     use hertz_cradle::sweep::Sweep;
     let Some(_) = gpu() else { return };
     let hw = gpu_with(Profile {
@@ -907,7 +908,8 @@ fn gpu_sweep_with_concurrent_calls_writes_the_cpu_bytes() {
         command: vec![],
         error_estimate: false,
         parquet: false,
-        progress: false,
+        on_progress: None,
+        on_row: None,
         cancel: None,
     };
     rayon::ThreadPoolBuilder::new()

@@ -369,7 +369,7 @@ fn shards_are_balanced_in_cost_not_count() {
 
 #[test]
 fn shard_slurm_reads_the_job_array() {
-    use hertz_cradle::cli::slurm_shard;
+    use hertz_cradle::sweep::shard::slurm_shard;
     let env = |vars: &'static [(&'static str, &'static str)]| {
         move |k: &str| {
             vars.iter()
@@ -960,4 +960,120 @@ fn sampling_designs_are_seeded_sharded_and_keep_their_properties() {
     assert_eq!(fs::read_to_string(m).unwrap(), sob);
     let rnd = run("random", spec("random", 1), &[]);
     assert_eq!(rnd.lines().count(), n + 1);
+}
+
+/// The typed API (what the CLI and the Python module are clients of): the
+/// rows a sweep hands to `on_row` are the table's rows — same ids in the
+/// same order, the same sweep values, outcomes whose text is the CSV's —
+/// progress ends at the total, and the CLI writes the same bytes.
+#[test]
+fn typed_api_rows_are_the_tables_rows() {
+    use hertz_cradle::backend::BackendChoice;
+    use hertz_cradle::output::row::Cell;
+    use hertz_cradle::{Hooks, Progress, SweepRequest, SweepRow, SweepSettings};
+    use std::sync::{Arc, Mutex};
+    let d = tempfile::tempdir().unwrap();
+    let out = d.path().join("api.csv");
+    let settings = SweepSettings {
+        backend: BackendChoice::Cpu,
+        ..SweepSettings::default()
+    };
+    let req = SweepRequest::from_toml("small", SMALL, ".", &out, &settings).unwrap();
+    let rows: Arc<Mutex<Vec<SweepRow>>> = Arc::default();
+    let last: Arc<Mutex<Option<Progress>>> = Arc::default();
+    let (r2, l2) = (rows.clone(), last.clone());
+    let s = req
+        .run(Hooks {
+            on_row: Some(Arc::new(move |r| r2.lock().unwrap().push(r.clone()))),
+            on_progress: Some(Arc::new(move |p| *l2.lock().unwrap() = Some(p))),
+            ..Hooks::default()
+        })
+        .unwrap();
+    assert_eq!((s.scenes, s.ok), (12, 12));
+    assert_eq!(
+        *last.lock().unwrap(),
+        Some(Progress {
+            done: 12,
+            total: 12
+        })
+    );
+    let text = fs::read_to_string(&out).unwrap();
+    let rows = rows.lock().unwrap();
+    let lines: Vec<&str> = text.lines().skip(1).collect();
+    assert_eq!(rows.len(), lines.len());
+    for (r, line) in rows.iter().zip(&lines) {
+        let f: Vec<&str> = line.split(',').collect();
+        assert_eq!(f[0], r.id.to_string());
+        let Cell::Num(gap) = r.params[1] else {
+            panic!("{:?}", r.params)
+        };
+        assert_eq!(f[2].parse::<f64>().unwrap(), gap);
+        assert_eq!(f[3], r.outcome.status.name());
+        assert_eq!(f[4].parse::<f64>().unwrap(), r.outcome.v[0], "{line}");
+    }
+    // The CLI on the same sweep: the same bytes.
+    let file = d.path().join("small.toml");
+    fs::write(&file, SMALL).unwrap();
+    let cli_out = d.path().join("cli.csv");
+    cradle()
+        .args(["sweep", file.to_str().unwrap(), "--backend", "cpu", "--out"])
+        .arg(&cli_out)
+        .assert()
+        .success();
+    assert_eq!(fs::read(&cli_out).unwrap(), text.as_bytes());
+}
+
+/// Typed errors: bad settings are `Error::Input` holding the `InputError`
+/// with the CLI's message, before anything is written; a cancelled run is
+/// `Error::Interrupted` and leaves its partial file, which `resume` finishes
+/// into the uninterrupted run's bytes.
+#[test]
+fn typed_api_errors_and_cancellation() {
+    use hertz_cradle::backend::BackendChoice;
+    use hertz_cradle::{Error, Hooks, SolverSettings, SweepRequest, SweepSettings};
+    use std::sync::atomic::AtomicBool;
+    use std::sync::Arc;
+    let d = tempfile::tempdir().unwrap();
+    let out = d.path().join("c.csv");
+    let bad = SweepSettings {
+        solver: SolverSettings {
+            tolerance: Some(2.0),
+            ..SolverSettings::default()
+        },
+        ..SweepSettings::default()
+    };
+    let e = SweepRequest::from_toml("small", SMALL, ".", &out, &bad).unwrap_err();
+    assert!(e.to_string().starts_with("--tolerance 2:"), "{e}");
+    let e = Error::from(e);
+    assert!(e.input_error().is_some());
+    assert!(!out.exists());
+
+    let settings = SweepSettings {
+        backend: BackendChoice::Cpu,
+        ..SweepSettings::default()
+    };
+    let req = SweepRequest::from_toml("small", SMALL, ".", &out, &settings).unwrap();
+    let e = req
+        .run(Hooks {
+            cancel: Some(Arc::new(AtomicBool::new(true))),
+            ..Hooks::default()
+        })
+        .unwrap_err();
+    assert!(matches!(e, Error::Interrupted), "{e}");
+    assert!(!out.exists());
+    assert!(d.path().join("c.csv.partial").exists());
+    let resumed = SweepSettings {
+        resume: true,
+        ..settings.clone()
+    };
+    SweepRequest::from_toml("small", SMALL, ".", &out, &resumed)
+        .unwrap()
+        .run(Hooks::default())
+        .unwrap();
+    let fresh = d.path().join("fresh.csv");
+    SweepRequest::from_toml("small", SMALL, ".", &fresh, &settings)
+        .unwrap()
+        .run(Hooks::default())
+        .unwrap();
+    assert_eq!(fs::read(&out).unwrap(), fs::read(&fresh).unwrap());
 }

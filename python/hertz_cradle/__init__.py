@@ -55,21 +55,6 @@ def _document(spec: Spec, what: str) -> Tuple[Optional[str], Optional[str], bool
     raise TypeError(f"{what} must be a path, a TOML string or a dict, not {type(spec).__name__}")
 
 
-def _solver_args(
-    precision: Optional[str], tolerance: Optional[float], method: Optional[str], model: Optional[str]
-) -> List[str]:
-    a: List[str] = []
-    for flag, value in (
-        ("--precision", precision),
-        ("--tolerance", tolerance),
-        ("--method", method),
-        ("--model", model),
-    ):
-        if value is not None:
-            a += [flag, repr(float(value)) if flag == "--tolerance" else str(value)]
-    return a
-
-
 def _read_table(path: str, columns: List[Tuple[str, str]]) -> pa.Table:
     """A sweep's output file as a Table with the Parquet output's types."""
     with open(path, "rb") as f:
@@ -136,20 +121,24 @@ def sweep(
     path, text, is_json, name = _document(spec, "sweep")
     with tempfile.TemporaryDirectory(prefix="hertz_cradle_") as tmp:
         target = os.fspath(out) if out is not None else os.path.join(tmp, "sweep.parquet")
-        args = [path if path is not None else name, "--out", target, "--backend", backend]
-        args += _solver_args(precision, tolerance, method, model)
-        if threads is not None:
-            args += ["--threads", str(int(threads))]
-        if format is not None:
-            args += ["--format", str(format)]
-        if resume:
-            args.append("--resume")
-        if shard is not None:
-            args += ["--shard", str(shard)]
-        if error_estimate:
-            args.append("--error-estimate")
         summary = _native.sweep(
-            args, text, is_json, name, os.getcwd(), bool(progress)
+            path,
+            text,
+            is_json,
+            name,
+            os.getcwd(),
+            target,
+            backend=backend,
+            precision=precision,
+            tolerance=None if tolerance is None else float(tolerance),
+            method=method,
+            model=model,
+            threads=None if threads is None else int(threads),
+            format=None if format is None else str(format),
+            resume=bool(resume),
+            shard=None if shard is None else str(shard),
+            error_estimate=bool(error_estimate),
+            progress=bool(progress),
         )
         return _read_table(target, summary["columns"])
 
@@ -173,16 +162,21 @@ def run(
     the trajectory (``t``, ``x_0`` ..., ``v_0`` ...; SI units) as a Table.
     """
     path, text, is_json, name = _document(scene, "scene")
-    args = [path if path is not None else name]
-    args += _solver_args(precision, tolerance, method, model)
     want_trace = trace or trace_dt is not None
     with tempfile.TemporaryDirectory(prefix="hertz_cradle_") as tmp:
-        trace_path = os.path.join(tmp, "trace.csv")
-        if want_trace:
-            args += ["--trace", trace_path]
-            if trace_dt is not None:
-                args += ["--trace-dt", repr(float(trace_dt))]
-        outcome = _native.run(args, text, is_json, name)
+        trace_path = os.path.join(tmp, "trace.csv") if want_trace else None
+        outcome = _native.run(
+            path,
+            text,
+            is_json,
+            name,
+            precision=precision,
+            tolerance=None if tolerance is None else float(tolerance),
+            method=method,
+            model=model,
+            trace=trace_path,
+            trace_dt=None if trace_dt is None else float(trace_dt),
+        )
         if not want_trace:
             return outcome
         return outcome, pcsv.read_csv(trace_path)

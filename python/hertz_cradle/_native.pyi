@@ -1,27 +1,46 @@
-"""Type stubs of the Rust extension (python/src/lib.rs). Use the functions of
-``hertz_cradle`` itself; these take the command line's argument lists."""
+"""Type stubs of the Rust extension (python/src/lib.rs), a client of the
+core's typed API. Use the functions of ``hertz_cradle`` itself."""
 
 from typing import Any, Dict, List, Optional, Tuple
 
 __version__: str
 
 def sweep(
-    args: List[str],
-    text: Optional[str] = None,
-    json: bool = False,
-    name: str = "<string>",
-    base_dir: str = ".",
+    path: Optional[str],
+    text: Optional[str],
+    json: bool,
+    name: str,
+    base_dir: str,
+    out: str,
+    *,
+    backend: str = "auto",
+    precision: Optional[str] = None,
+    tolerance: Optional[float] = None,
+    method: Optional[str] = None,
+    model: Optional[str] = None,
+    threads: Optional[int] = None,
+    format: Optional[str] = None,
+    resume: bool = False,
+    shard: Optional[str] = None,
+    error_estimate: bool = False,
     progress: bool = True,
 ) -> Dict[str, Any]:
-    """Run ``cradle sweep ARGS``; a summary with ``columns`` [(name, type)]."""
+    """Run a sweep into ``out``; a summary with ``columns`` [(name, type)]."""
 
 def run(
-    args: List[str],
-    text: Optional[str] = None,
-    json: bool = False,
-    name: str = "<string>",
+    scene: Optional[str],
+    text: Optional[str],
+    json: bool,
+    name: str,
+    *,
+    precision: Optional[str] = None,
+    tolerance: Optional[float] = None,
+    method: Optional[str] = None,
+    model: Optional[str] = None,
+    trace: Optional[str] = None,
+    trace_dt: Optional[float] = None,
 ) -> Dict[str, Any]:
-    """Run ``cradle run ARGS``; the outcome row as a dict."""
+    """Run one scene; the outcome row as a dict."""
 
 def scenes() -> List[Tuple[str, str]]:
     """The built-in scenes: (name, summary)."""

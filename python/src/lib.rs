@@ -1,9 +1,10 @@
-//! `hertz_cradle._native`: the Rust side of the Python module. Every call
-//! goes through the CLI's own argument parser and checked configuration
-//! (`cli`, `config`), so a bad input raises `ValueError` with the message
-//! `cradle` prints, and a sweep runs exactly as `cradle sweep` runs it (same
-//! pipeline, output files, resume, sidecar). The Python layer
-//! (`hertz_cradle/__init__.py`) builds the argument lists and reads tables.
+//! `hertz_cradle._native`: the Rust side of the Python module, a client of
+//! the core's typed API (`hertz_cradle::request`): keyword arguments become
+//! `SweepSettings` / `RunSettings`, checked by the same code as the command
+//! line's flags, so a bad input raises `ValueError` with the message `cradle`
+//! prints, and a sweep runs exactly as `cradle sweep` runs it (same pipeline,
+//! output files, resume, sidecar). No command-line parser is linked in.
+//! The Python layer (`hertz_cradle/__init__.py`) reads the tables.
 //!
 //! The GIL is released while scenes run. A sweep runs on a thread of its
 //! own; the calling thread wakes every 50 ms to let Python handle signals:
@@ -12,45 +13,54 @@
 //! raised once it has stopped. No panic crosses into Python: a panic in the
 //! sweep thread becomes RuntimeError.
 
-use std::path::Path;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Condvar, Mutex};
 use std::time::Duration;
 
-use clap::Parser;
-use hertz_cradle::cli::{Cli, Command, Format};
-use hertz_cradle::config::{RunConfig, SweepConfig};
-use hertz_cradle::error::{Interrupted, Source};
+use hertz_cradle::backend::BackendChoice;
+use hertz_cradle::choice::Choice;
+use hertz_cradle::engine::Model;
 use hertz_cradle::output::row::{self, ColType, Field};
-use hertz_cradle::scene::{builtin, Scene};
-use hertz_cradle::sweep::Sweep;
-use hertz_cradle::InputError;
+use hertz_cradle::output::TableKind;
+use hertz_cradle::scene::{builtin, Method, Precision};
+use hertz_cradle::{
+    Error, Hooks, RunRequest, RunSettings, SolverSettings, SweepRequest, SweepSettings,
+};
 use pyo3::exceptions::{PyKeyboardInterrupt, PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 
 /// An error as Python sees it: bad input → ValueError (the CLI's message),
 /// an interrupt → KeyboardInterrupt, anything else → RuntimeError.
-fn to_py(e: anyhow::Error) -> PyErr {
-    let text = format!("{e:#}");
-    if e.chain().any(|c| c.downcast_ref::<Interrupted>().is_some()) {
-        PyKeyboardInterrupt::new_err(text)
-    } else if e.chain().any(|c| c.downcast_ref::<InputError>().is_some()) {
-        PyValueError::new_err(text)
-    } else {
-        PyRuntimeError::new_err(text)
+fn to_py(e: Error) -> PyErr {
+    let text = e.to_string();
+    match e {
+        Error::Interrupted => PyKeyboardInterrupt::new_err(text),
+        Error::Input(_) => PyValueError::new_err(text),
+        Error::Runtime(_) => PyRuntimeError::new_err(text),
     }
 }
 
-/// Parse `cradle SUBCOMMAND ARGS...` as the CLI does; a usage error is a
-/// ValueError with clap's message.
-fn parse(subcommand: &str, args: Vec<String>) -> PyResult<Command> {
-    let argv = ["cradle".to_string(), subcommand.to_string()]
-        .into_iter()
-        .chain(args);
-    Cli::try_parse_from(argv)
-        .map(|c| c.command)
-        .map_err(|e| PyValueError::new_err(e.render().to_string().trim_end().to_string()))
+/// A closed-set setting from its name, `None` kept.
+fn choice<C: Choice>(flag: &str, value: Option<&str>) -> PyResult<Option<C>> {
+    value
+        .map(|v| C::parse_flag(flag, v).map_err(|e| to_py(e.into())))
+        .transpose()
+}
+
+/// The solver keyword arguments as the core's settings.
+fn solver(
+    precision: Option<&str>,
+    tolerance: Option<f64>,
+    method: Option<&str>,
+    model: Option<&str>,
+) -> PyResult<SolverSettings> {
+    Ok(SolverSettings {
+        precision: choice::<Precision>("--precision", precision)?,
+        tolerance,
+        method: choice::<Method>("--method", method)?,
+        model: choice::<Model>("--model", model)?,
+    })
 }
 
 /// TOML text from a JSON document (a Python dict, dumped).
@@ -74,46 +84,64 @@ fn type_name(t: ColType) -> &'static str {
     }
 }
 
-/// Run a sweep: `args` are `cradle sweep`'s arguments. With `text` (TOML,
-/// or JSON when `json`), the sweep is that document instead of the file
-/// `args[0]` names (a relative `scene = "file"` is found from `base_dir`).
-/// Returns a summary: scenes, ok, wall_s, backend, already_complete, and
-/// columns (name, type) of the table written.
+/// Run a sweep: the sweep file `path`, or `text` (TOML, or JSON when
+/// `json`) named `name` in messages, whose relative `scene = "file"` is
+/// found from `base_dir`; written to `out`; the other arguments are
+/// `cradle sweep`'s flags. Returns a summary: scenes, ok, wall_s, backend,
+/// already_complete, and columns (name, type) of the table written.
 #[pyfunction]
-#[pyo3(signature = (args, text=None, json=false, name="<string>", base_dir=".", progress=true))]
+#[pyo3(signature = (path, text, json, name, base_dir, out, *, backend="auto", precision=None,
+    tolerance=None, method=None, model=None, threads=None, format=None, resume=false,
+    shard=None, error_estimate=false, progress=true))]
+#[allow(clippy::too_many_arguments)]
 fn sweep(
     py: Python<'_>,
-    args: Vec<String>,
+    path: Option<String>,
     text: Option<String>,
     json: bool,
     name: &str,
     base_dir: &str,
+    out: &str,
+    backend: &str,
+    precision: Option<&str>,
+    tolerance: Option<f64>,
+    method: Option<&str>,
+    model: Option<&str>,
+    threads: Option<i64>,
+    format: Option<&str>,
+    resume: bool,
+    shard: Option<String>,
+    error_estimate: bool,
     progress: bool,
 ) -> PyResult<Py<PyDict>> {
-    let Command::Sweep(a) = parse("sweep", args)? else {
-        return Err(PyValueError::new_err("not a sweep"));
+    let settings = SweepSettings {
+        backend: choice::<BackendChoice>("--backend", Some(backend))?
+            .unwrap_or(BackendChoice::Auto),
+        resume,
+        shard,
+        threads,
+        format: choice::<TableKind>("--format", format)?,
+        error_estimate,
+        solver: solver(precision, tolerance, method, model)?,
     };
-    let given = match text {
-        None => None,
-        Some(t) => {
+    let req = match (path, text) {
+        (Some(p), _) => SweepRequest::from_file(p, out, &settings),
+        (None, Some(t)) => {
             let t = if json { toml_from_json(name, &t)? } else { t };
-            Some(
-                Sweep::parse(&Source::new(name, t), Path::new(base_dir))
-                    .map_err(|e| to_py(e.into()))?,
-            )
+            SweepRequest::from_toml(name, &t, base_dir, out, &settings)
         }
-    };
-    let cfg = SweepConfig::from_args_and(&a, given).map_err(|e| to_py(e.into()))?;
-    let columns: Vec<(String, &str)> = cfg
-        .sweep
-        .header()
+        (None, None) => return Err(PyValueError::new_err("a sweep needs a path or a text")),
+    }
+    .map_err(|e| to_py(e.into()))?;
+    let columns: Vec<(String, &str)> = req
+        .columns()
         .into_iter()
-        .zip(cfg.sweep.column_types().into_iter().map(type_name))
+        .map(|(n, t)| (n, type_name(t)))
         .collect();
     let command = vec![
         "python".to_string(),
         "hertz_cradle.sweep".to_string(),
-        cfg.out_given.display().to_string(),
+        req.out_given.display().to_string(),
     ];
 
     let cancel = Arc::new(AtomicBool::new(false));
@@ -123,7 +151,13 @@ fn sweep(
         let (cancel, finished) = (cancel.clone(), finished.clone());
         std::thread::spawn(move || {
             let r = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-                hertz_cradle::sweep::run::execute(&cfg, command, progress, Some(cancel))
+                let bar = hertz_cradle::progress::Bar::stderr(progress);
+                req.run(Hooks {
+                    command,
+                    on_progress: Some(bar.callback()),
+                    on_row: None,
+                    cancel: Some(cancel),
+                })
             }));
             *finished.0.lock().unwrap_or_else(|e| e.into_inner()) = true;
             finished.1.notify_all();
@@ -179,50 +213,46 @@ fn field_to_py<'py>(py: Python<'py>, f: Field) -> PyResult<Bound<'py, PyAny>> {
     })
 }
 
-/// Run one scene: `args` are `cradle run`'s arguments (the scene first).
-/// With `text` (TOML, or JSON when `json`), the scene is that document,
-/// named `name` in messages. Returns the outcome row as a dict (the columns
-/// of `cradle run --format csv`); a trace, if asked for, is in the file
-/// given with `--trace`.
+/// Run one scene: a built-in scene's name or a file (`scene`), or `text`
+/// (TOML, or JSON when `json`) named `name` in messages. Returns the outcome
+/// row as a dict (the columns of `cradle run --format csv`); a trace, if
+/// asked for, is written to `trace`.
 #[pyfunction]
-#[pyo3(signature = (args, text=None, json=false, name="<string>"))]
+#[pyo3(signature = (scene, text, json, name, *, precision=None, tolerance=None, method=None,
+    model=None, trace=None, trace_dt=None))]
+#[allow(clippy::too_many_arguments)]
 fn run(
     py: Python<'_>,
-    args: Vec<String>,
+    scene: Option<String>,
     text: Option<String>,
     json: bool,
     name: &str,
+    precision: Option<&str>,
+    tolerance: Option<f64>,
+    method: Option<&str>,
+    model: Option<&str>,
+    trace: Option<String>,
+    trace_dt: Option<f64>,
 ) -> PyResult<Py<PyDict>> {
-    let Command::Run {
-        scene,
-        trace,
+    let settings = RunSettings {
+        solver: solver(precision, tolerance, method, model)?,
+        trace: trace.map(Into::into),
         trace_dt,
-        solver,
-        ..
-    } = parse("run", args)?
-    else {
-        return Err(PyValueError::new_err("not a run"));
     };
-    let cfg = match text {
-        None => RunConfig::from_args(&scene, Format::Csv, trace.as_deref(), trace_dt, &solver),
-        Some(t) => {
+    let cfg = match (scene, text) {
+        (Some(s), _) => RunRequest::from_name(&s, &settings),
+        (None, Some(t)) => {
             let t = if json { toml_from_json(name, &t)? } else { t };
-            Scene::from_toml_str(name, &t)
-                .map_err(anyhow::Error::from)
-                .and_then(|s| {
-                    RunConfig::from_scene(name, s, Format::Csv, trace.as_deref(), trace_dt, &solver)
-                })
+            RunRequest::from_toml(name, &t, &settings)
         }
+        (None, None) => return Err(PyValueError::new_err("a run needs a scene or a text")),
     }
     .map_err(to_py)?;
     let outcome = py
-        .detach(|| std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| cfg.execute())))
+        .detach(|| std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| cfg.run())))
         .map_err(|_| PyRuntimeError::new_err("the run panicked"))?
         .map_err(to_py)?;
-    let shape = row::Shape {
-        width: cfg.scene.n,
-        pendulum: cfg.chain.is_pendulum(),
-    };
+    let shape = cfg.shape();
     let header = row::header(&[], shape);
     let d = PyDict::new(py);
     let mut k = 0;

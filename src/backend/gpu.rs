@@ -1,4 +1,4 @@
-//! The GPU backend: `src/engine/integrate/integrate.wgsl` through wgpu. Each
+//! The GPU backend: `shaders/integrate.wgsl` through wgpu. Each
 //! invocation is a worker that takes scenes from the batch's queue in turn
 //! (`layout::GpuQueue`); how batches use the device is a [`Profile`]. The
 //! context (device, pipelines, bind-group layout) is built once per sweep and
@@ -24,13 +24,13 @@ use crate::scene::Precision;
 /// The shader's body (what both kernels share, then the kernel with an
 /// invocation per scene); its prelude comes from `layout::prelude`.
 pub const SHADER_BODY: &str = concat!(
-    include_str!("../engine/integrate/scene.wgsl"),
-    include_str!("../engine/integrate/integrate.wgsl")
+    include_str!("../../shaders/scene.wgsl"),
+    include_str!("../../shaders/integrate.wgsl")
 );
 /// The body of the kernel with a workgroup per scene (an invocation per body).
 pub const WIDE_BODY: &str = concat!(
-    include_str!("../engine/integrate/scene.wgsl"),
-    include_str!("../engine/integrate/wide.wgsl")
+    include_str!("../../shaders/scene.wgsl"),
+    include_str!("../../shaders/wide.wgsl")
 );
 /// Threads per workgroup (`@workgroup_size` in the shader).
 const WORKGROUP: u32 = 64;
@@ -107,7 +107,7 @@ impl Profile {
     /// a time (two at once were 3× slower on grid100), a worker per scene,
     /// rounds by the loop limit, every chain in the shader.
     pub const SOFTWARE: Profile = Profile {
-        batch: crate::sweep::pipeline::BATCH,
+        batch: super::BATCH,
         calls: 1,
         scenes_per_worker: 1,
         rounds: None,
@@ -333,7 +333,7 @@ const LOOP_CAP: usize = 12_000;
 /// the invocations of a SIMD vector in lock step and silently cuts loops short
 /// once the vector has run about 2^16 loop iterations (measured: 1,986 Verlet
 /// steps of a 5-ball chain), so the costliest scene of the batch sets it
-/// ([`LOOP_CAP`]; a worker's rounds over all the scenes it takes in one
+/// (`LOOP_CAP`; a worker's rounds over all the scenes it takes in one
 /// dispatch, one round charged per scene taken, stay within it; real GPUs
 /// have watchdogs instead, and are paced by time). At most 4096.
 /// `wide`: the kernel with a workgroup of `class` invocations per scene.

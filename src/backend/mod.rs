@@ -5,9 +5,36 @@ pub mod cpu;
 pub mod gpu;
 pub mod layout;
 
-use crate::cli::{flag, BackendChoice};
+use crate::choice::Choice;
 use crate::engine::{Chain, Outcome, Solver, Status};
+use crate::error::flag;
 use crate::scene::Precision;
+
+/// Scenes per batch on the CPU: the unit of work of a sweep lane and of a
+/// backend call (a backend says its own: [`Backend::batch_size`]).
+pub const BATCH: u64 = 2048;
+
+/// Which backend a sweep runs on (`--backend`, `backend=`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BackendChoice {
+    /// A hardware GPU that can run the precision, else the CPU (said on stderr).
+    Auto,
+    /// Any GPU adapter, software ones (Mesa lavapipe) included, or an error.
+    Gpu,
+    /// rayon over the Rust engine.
+    Cpu,
+}
+
+impl Choice for BackendChoice {
+    const ALL: &'static [Self] = &[BackendChoice::Auto, BackendChoice::Gpu, BackendChoice::Cpu];
+    fn name(self) -> &'static str {
+        match self {
+            BackendChoice::Auto => "auto",
+            BackendChoice::Gpu => "gpu",
+            BackendChoice::Cpu => "cpu",
+        }
+    }
+}
 
 /// One scene ready to integrate, or a combination of sweep values that did
 /// not make a valid scene (its row gets status `invalid`).
@@ -28,7 +55,7 @@ pub trait Backend: Sync {
     fn run(&self, jobs: &[Job]) -> anyhow::Result<Vec<Outcome>>;
     /// Scenes per `run` call of the sweep pipeline.
     fn batch_size(&self) -> u64 {
-        crate::sweep::pipeline::BATCH
+        BATCH
     }
     /// How many `run` calls the sweep pipeline may make at once: the CPU
     /// shares its rayon pool among any number; the GPU takes one.

@@ -26,6 +26,13 @@ pub enum Model {
     Closure,
 }
 
+impl crate::choice::Choice for Model {
+    const ALL: &'static [Self] = &Model::ALL;
+    fn name(self) -> &'static str {
+        Model::name(self)
+    }
+}
+
 impl Model {
     pub const ALL: [Model; 3] = [Model::Hertz, Model::HardSphere, Model::Closure];
 

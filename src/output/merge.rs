@@ -19,7 +19,7 @@ use serde_json::Value;
 
 use super::parquet_file::{is_parquet, PartFile};
 use super::partial::{partial_path, write_atomic};
-use crate::cli::TableKind;
+use super::TableKind;
 use crate::error::InputError;
 
 fn bad(path: &Path, what: impl Into<String>) -> anyhow::Error {
@@ -284,8 +284,7 @@ pub fn merge(inputs: &[PathBuf], out: &Path) -> Result<u64> {
         &super::sidecar::path(out),
         (serde_json::to_string_pretty(&sc)? + "\n").as_bytes(),
     )?;
-    std::fs::rename(&tmp, out)
-        .with_context(|| format!("cannot rename {} to {}", tmp.display(), out.display()))?;
+    super::publish::publish(&tmp, out)?;
     Ok(n)
 }
 

@@ -94,24 +94,8 @@ pub enum Opened {
     AlreadyComplete,
 }
 
-/// Suffix of [`write_atomic`]'s temporary file.
-const TMP: &str = ".tmp";
-
-/// Write `text` to `path` atomically: a temporary file beside it, synced,
-/// then renamed over it.
-pub fn write_atomic(path: &Path, text: &[u8]) -> Result<()> {
-    let tmp = with_suffix(path, TMP);
-    let r = (|| -> std::io::Result<()> {
-        let mut f = File::create(&tmp)?;
-        f.write_all(text)?;
-        f.sync_all()?;
-        fs::rename(&tmp, path)
-    })();
-    if r.is_err() {
-        let _ = fs::remove_file(&tmp);
-    }
-    r.with_context(|| format!("cannot write {}", path.display()))
-}
+pub use super::publish::write_atomic;
+use super::publish::TMP;
 
 fn mismatch(path: &Path, what: String) -> anyhow::Error {
     InputError::Data {
@@ -285,13 +269,7 @@ impl Partial {
         crate::output::failpoint::check("sidecar")
             .with_context(|| format!("cannot write {}", sidecar.0.display()))?;
         write_atomic(sidecar.0, sidecar.1)?;
-        fs::rename(&done, &self.path).with_context(|| {
-            format!(
-                "cannot rename {} to {}",
-                done.display(),
-                self.path.display()
-            )
-        })?;
+        super::publish::publish(&done, &self.path)?;
         if done != self.partial {
             let _ = fs::remove_file(&self.partial);
         }

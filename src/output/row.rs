@@ -218,6 +218,38 @@ pub enum Field<'a> {
     Null,
 }
 
+/// A field that owns its text: a cell of a typed row (the typed API's
+/// [`crate::sweep::session::SweepRow`]).
+#[derive(Clone, Debug, PartialEq)]
+pub enum Cell {
+    Int(u64),
+    Num(f64),
+    Text(String),
+    Null,
+}
+
+impl From<Field<'_>> for Cell {
+    fn from(f: Field<'_>) -> Cell {
+        match f {
+            Field::Int(x) => Cell::Int(x),
+            Field::Num(x) => Cell::Num(x),
+            Field::Text(t) => Cell::Text(t.to_string()),
+            Field::Null => Cell::Null,
+        }
+    }
+}
+
+impl Cell {
+    /// The cell as a number, if it is one (an integer too).
+    pub fn as_f64(&self) -> Option<f64> {
+        match self {
+            Cell::Int(x) => Some(*x as f64),
+            Cell::Num(x) => Some(*x),
+            _ => None,
+        }
+    }
+}
+
 impl<'a> Field<'a> {
     /// A CSV cell of a column of type `t` back as the field it was written
     /// from (the CSV's numbers are shortest round-trip text: exact).

@@ -77,6 +77,13 @@ impl Method {
     }
 }
 
+impl crate::choice::Choice for Method {
+    const ALL: &'static [Self] = &Method::ALL;
+    fn name(self) -> &'static str {
+        Method::name(self)
+    }
+}
+
 /// Arithmetic precision of an integration (`--precision`, `[solver] precision`).
 ///
 /// `df64`: double-single, each value a pair of f32 (≈ 48 bits), for GPUs
@@ -89,7 +96,15 @@ pub enum Precision {
     Df64,
 }
 
+impl crate::choice::Choice for Precision {
+    const ALL: &'static [Self] = &Precision::ALL;
+    fn name(self) -> &'static str {
+        Precision::name(self)
+    }
+}
+
 impl Precision {
+    pub const ALL: [Precision; 3] = [Precision::F32, Precision::F64, Precision::Df64];
     pub fn parse(s: &str) -> Option<Precision> {
         match s {
             "f32" => Some(Precision::F32),

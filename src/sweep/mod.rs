@@ -8,6 +8,8 @@ pub mod pipeline;
 pub mod points;
 pub mod refine;
 pub mod run;
+pub mod session;
+pub mod shard;
 
 use std::path::Path;
 

@@ -24,17 +24,13 @@ use std::time::{Duration, Instant};
 
 use anyhow::Result;
 
-use super::run::Options;
+use super::session::{Options, SweepRow};
 use super::Sweep;
 use crate::backend::{run_with_estimate, Backend, DeviceStats, Job};
 use crate::engine::Status;
 use crate::output::parquet_file::{Columns, Segment, SEGMENT_ROWS};
 use crate::output::partial::{Partial, TableFormat};
 use crate::output::row;
-
-/// Scenes per batch on the CPU: the unit of work of a lane and of a backend
-/// call (the backend says its own: [`Backend::batch_size`]).
-pub const BATCH: u64 = 2048;
 
 /// Rows the lanes may run ahead of the oldest unwritten batch. With ~330
 /// bytes a row (5 balls) that is ≤ 70 MB of formatted rows waiting for a
@@ -96,12 +92,14 @@ enum Rows {
     Arrow(arrow_array::RecordBatch),
 }
 
-/// One finished batch: its first id, its rows, how many are ok.
+/// One finished batch: its first id, its rows, how many are ok, and its
+/// rows typed when a row callback wants them.
 struct Done {
     first: u64,
     n: u64,
     ok: u64,
     rows: Rows,
+    typed: Vec<SweepRow>,
 }
 
 /// At most `n` holders at a time (backend calls of a backend that limits them).
@@ -206,6 +204,13 @@ fn batch(
             Rows::Arrow(cols.finish()?)
         }
     };
+    let typed = match opts.on_row {
+        Some(_) => (first..)
+            .zip(&outcomes)
+            .map(|(p, o)| sweep.typed_row(ids.at(p), o))
+            .collect(),
+        None => vec![],
+    };
     let t3 = Instant::now();
     st.jobs += (t1 - t).as_secs_f64();
     st.integration += (t2 - t1).as_secs_f64();
@@ -215,6 +220,7 @@ fn batch(
         n: end - first,
         ok,
         rows,
+        typed,
     })
 }
 
@@ -318,6 +324,9 @@ pub fn stream(
                         return Err(e);
                     }
                     writing += t.elapsed().as_secs_f64();
+                    if let Some(f) = &opts.on_row {
+                        d.typed.iter().for_each(|r| f(r));
+                    }
                     ok += d.ok;
                     done += d.n;
                     expect += d.n;

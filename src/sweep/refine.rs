@@ -351,9 +351,9 @@ pub type Values = HashMap<u64, String>;
 pub fn run(
     sweep: &super::Sweep,
     spec: &RefineSpec,
-    opts: &super::run::Options,
+    opts: &super::session::Options,
     backend: &dyn crate::backend::Backend,
-) -> anyhow::Result<super::run::Summary> {
+) -> anyhow::Result<super::session::Summary> {
     use super::pipeline::{self, Hooks, Ids};
     use crate::error::InputError;
     use std::io::BufRead;
@@ -406,14 +406,13 @@ pub fn run(
         .expect("checked when the sweep was read");
     // The partial file holds CSV rows (levels as sections) whatever the
     // output's format; a Parquet output is made from them at the end.
-    let o = super::run::open(sweep, opts, lo, hi - lo, true)?;
+    let o = super::session::open(sweep, opts, lo, true)?;
     let Some(mut out) = o.out else {
-        return Ok(super::run::Summary {
+        return Ok(super::session::Summary {
             already_complete: true,
             ..Default::default()
         });
     };
-    let bar = o.bar;
     let values: Mutex<Values> = Mutex::new(HashMap::new());
     // Ids of the rows whose status is ok (for the sidecar's counts).
     let ok_ids: Mutex<BTreeSet<u64>> = Mutex::new(BTreeSet::new());
@@ -478,7 +477,8 @@ pub fn run(
         }
         consumed += have;
         let done_before = (resumed_from + done_run) as usize;
-        bar.set_length(done_before as u64 + (level.len() - have) as u64);
+        let total = done_before as u64 + (level.len() - have) as u64;
+        opts.progress(done_before as u64, total);
         if have < level.len() {
             let (ok, done, o2, st) = pipeline::stream(
                 sweep,
@@ -488,7 +488,7 @@ pub fn run(
                 (have as u64, level.len() as u64),
                 out,
                 &Hooks {
-                    progress: &|end| bar.set_position(done_before as u64 + end - have as u64),
+                    progress: &|end| opts.progress(done_before as u64 + end - have as u64, total),
                     save: &|out| out.save_wall(wall_before + t0.elapsed().as_secs_f64()),
                     rows: Some(&record),
                 },
@@ -514,7 +514,6 @@ pub fn run(
             None => break,
         }
     }
-    bar.finish_and_clear();
     let computed: u64 = sections.iter().sum();
     out.sections = sections;
     if opts.shard.is_some() {
@@ -546,13 +545,13 @@ pub fn run(
         "scenes_computed": computed,
         "fraction_computed": computed as f64 / sweep.total as f64,
     });
-    super::run::finish(
+    super::session::finish(
         sweep,
         opts,
         backend,
         &o.fingerprint,
         out,
-        super::run::Counts {
+        super::session::Counts {
             ids: (lo, hi),
             ok: ok_rows,
             done: rows,
@@ -563,7 +562,7 @@ pub fn run(
             refine: Some(refine),
         },
     )?;
-    Ok(super::run::Summary {
+    Ok(super::session::Summary {
         scenes: done_run,
         ok: ok_run,
         wall_s,

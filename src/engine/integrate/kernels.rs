@@ -1,5 +1,5 @@
 //! The scalar kernels of the integrator that the shader repeats operation for
-//! operation (same names in `integrate.wgsl`, beside this file).
+//! operation (same names in `shaders/integrate.wgsl` and `shaders/wide.wgsl`).
 
 use super::*;
 

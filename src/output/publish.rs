@@ -1,0 +1,73 @@
+//! Atomic publication, the one way every writer makes a file visible under
+//! its final name: the bytes go to a temporary file beside it, which is
+//! synced to disk and then renamed over the name (rename is atomic within a
+//! directory), and the directory is synced so the rename itself survives a
+//! crash. A kill or a full disk at any point leaves the previous file (or
+//! none) under the name, never a cut-off one.
+
+use std::fs::{self, File};
+use std::io::{BufWriter, Write};
+use std::path::Path;
+
+use anyhow::{Context, Result};
+
+use super::guard::with_suffix;
+
+/// Suffix of the temporary file [`write_with`] writes beside its target.
+pub const TMP: &str = ".tmp";
+
+/// Make the finished file `tmp` visible as `path`: `tmp` synced, renamed
+/// over `path`, the directory synced.
+pub fn publish(tmp: &Path, path: &Path) -> Result<()> {
+    File::open(tmp)
+        .and_then(|f| f.sync_all())
+        .with_context(|| format!("cannot write {}", tmp.display()))?;
+    fs::rename(tmp, path)
+        .with_context(|| format!("cannot rename {} to {}", tmp.display(), path.display()))?;
+    // The rename is durable once the directory is (not every filesystem
+    // lets a directory be synced: best effort).
+    if let Some(dir) = path.parent() {
+        let dir = if dir.as_os_str().is_empty() {
+            Path::new(".")
+        } else {
+            dir
+        };
+        if let Ok(d) = File::open(dir) {
+            let _ = d.sync_all();
+        }
+    }
+    Ok(())
+}
+
+/// Write `path` atomically: `write` fills a temporary file beside it
+/// (`path` + [`TMP`]), which is then published; on any error the temporary
+/// file is removed and `path` is untouched.
+pub fn write_with<T>(
+    path: &Path,
+    write: impl FnOnce(&mut BufWriter<File>) -> Result<T>,
+) -> Result<T> {
+    let tmp = with_suffix(path, TMP);
+    let r = (|| -> Result<T> {
+        let mut w = BufWriter::new(
+            File::create(&tmp).with_context(|| format!("cannot create {}", tmp.display()))?,
+        );
+        let v = write(&mut w)?;
+        w.flush()
+            .with_context(|| format!("cannot write {}", tmp.display()))?;
+        drop(w);
+        publish(&tmp, path)?;
+        Ok(v)
+    })();
+    if r.is_err() {
+        let _ = fs::remove_file(&tmp);
+    }
+    r
+}
+
+/// Write `bytes` to `path` atomically.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
+    write_with(path, |w| {
+        w.write_all(bytes)
+            .with_context(|| format!("cannot write {}", path.display()))
+    })
+}

@@ -1,0 +1,227 @@
+//! What every way of running a sweep shares (the plain run in `run.rs`, the
+//! refined one in `refine.rs`): its options, the output opened (locked,
+//! resumed, fingerprinted) before any row, and the sidecar and atomic
+//! publication after the last one.
+
+use std::path::PathBuf;
+use std::sync::atomic::AtomicBool;
+use std::sync::Arc;
+
+use anyhow::Result;
+
+use super::Sweep;
+use crate::backend::{Backend, Job};
+use crate::engine::{Chain, Outcome, Overrides, Solver};
+use crate::error::InputError;
+use crate::output::lock::OutputLock;
+use crate::output::partial::{Opened, Partial, TableFormat};
+use crate::output::row::{self, Cell};
+use crate::output::sidecar;
+
+/// Where a running sweep stands: rows written so far and rows it will write
+/// (a refinement's total grows level by level, as it finds what to refine).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Progress {
+    pub done: u64,
+    pub total: u64,
+}
+
+/// Called as rows are written (from the writer thread).
+pub type OnProgress = Arc<dyn Fn(Progress) + Send + Sync>;
+
+/// One scene's row, typed: its id, its sweep values (one per axis, as the
+/// table's columns after `id`) and its outcome.
+#[derive(Clone, Debug)]
+pub struct SweepRow {
+    pub id: u64,
+    pub params: Vec<Cell>,
+    pub outcome: Outcome,
+}
+
+/// Called with every row once it is written, in the order the output holds
+/// them (id order; level by level for a refinement).
+pub type OnRow = Arc<dyn Fn(&SweepRow) + Send + Sync>;
+
+/// How a sweep is run (the checked form of `cradle sweep`'s flags).
+#[derive(Clone)]
+pub struct Options {
+    pub out: PathBuf,
+    pub resume: bool,
+    /// 1-based shard K of N.
+    pub shard: Option<(u64, u64)>,
+    pub overrides: Overrides,
+    /// What made the run, for the sidecar (the command line, or a name).
+    pub command: Vec<String>,
+    /// Add a per-scene error estimate (a second, coarse run of every scene).
+    pub error_estimate: bool,
+    /// Write Parquet instead of CSV.
+    pub parquet: bool,
+    /// Told as rows are written.
+    pub on_progress: Option<OnProgress>,
+    /// Given every row, typed, once it is written.
+    pub on_row: Option<OnRow>,
+    /// Set to stop the run early (an interrupt): the rows so far stay in the
+    /// partial file, which `--resume` continues (`error::Interrupted`).
+    pub cancel: Option<Arc<AtomicBool>>,
+}
+
+impl Options {
+    /// Tell the progress callback, if any.
+    pub fn progress(&self, done: u64, total: u64) {
+        if let Some(f) = &self.on_progress {
+            f(Progress { done, total })
+        }
+    }
+}
+
+/// What a run did.
+#[derive(Debug, Default, Clone)]
+pub struct Summary {
+    /// Scenes this run computed (not those an earlier, resumed run did).
+    pub scenes: u64,
+    /// Of those, how many ended with status `ok`.
+    pub ok: u64,
+    pub wall_s: f64,
+    /// The output was complete before the run: nothing was done.
+    pub already_complete: bool,
+    /// The backend that ran it: its name and adapter.
+    pub backend: String,
+}
+
+impl Sweep {
+    /// The job for scene `id`: its chain and solver, or why it is invalid.
+    pub fn job(&self, id: u64, o: &Overrides) -> Result<Job, InputError> {
+        match self.scene(id) {
+            Ok(scene) => match Chain::from_scene(&scene) {
+                Ok(chain) => Ok(Job::Run {
+                    chain,
+                    solver: Solver::resolve(&scene, o)?,
+                }),
+                Err(e) => Err(e),
+            },
+            Err(_) => Ok(Job::Invalid {
+                n_balls: self.base.n,
+            }),
+        }
+    }
+
+    pub fn header(&self) -> Vec<String> {
+        row::header(&self.axis_names(), self.shape())
+    }
+
+    /// The Arrow schema of this sweep's table (its Parquet output).
+    pub fn arrow_schema(&self) -> arrow_schema::SchemaRef {
+        crate::output::parquet_file::schema(&self.header(), &self.column_types())
+    }
+
+    /// Scene `id`'s row, typed.
+    pub fn typed_row(&self, id: u64, outcome: &Outcome) -> SweepRow {
+        let mut params = Vec::with_capacity(self.axes.len());
+        self.emit_axis_values(id, &mut |f| params.push(Cell::from(f)));
+        SweepRow {
+            id,
+            params,
+            outcome: outcome.clone(),
+        }
+    }
+}
+
+/// What every run shares before its rows: the output locked and opened
+/// (or found complete), and the fingerprint.
+pub(super) struct Opening {
+    pub _lock: OutputLock,
+    pub fingerprint: String,
+    pub out: Option<Partial>,
+}
+
+/// `csv_partial`: the partial file holds CSV rows even for a Parquet output.
+pub(super) fn open(sweep: &Sweep, opts: &Options, lo: u64, csv_partial: bool) -> Result<Opening> {
+    // One writer per output, for the whole run, before anything is touched.
+    let lock = OutputLock::acquire(&opts.out)?;
+    // Everything a resumed run must share with the first, in one string.
+    let fingerprint = serde_json::to_string(&serde_json::json!({
+        "sweep": sweep, "shard": opts.shard, "overrides": format!("{:?}", opts.overrides),
+        "error_estimate": opts.error_estimate,
+        "precision_default": "f64", "version": env!("CARGO_PKG_VERSION"),
+    }))?;
+    // Fail on a bad solver choice (e.g. f32 below its floor) before any output.
+    sweep.job(lo.min(sweep.total.saturating_sub(1)), &opts.overrides)?;
+    let mut header = Vec::new();
+    {
+        let mut w = csv::Writer::from_writer(&mut header);
+        w.write_record(sweep.header())?;
+        w.flush()?;
+    }
+    let format = if opts.parquet && !csv_partial {
+        TableFormat::Parquet(sweep.arrow_schema())
+    } else {
+        TableFormat::Csv
+    };
+    let out = match Partial::open(&opts.out, format, &header, &fingerprint, opts.resume)? {
+        Opened::AlreadyComplete => None,
+        Opened::Writing(w) => Some(*w),
+    };
+    Ok(Opening {
+        _lock: lock,
+        fingerprint,
+        out,
+    })
+}
+
+/// The counts a sidecar records.
+pub(super) struct Counts {
+    pub ids: (u64, u64),
+    pub ok: u64,
+    pub done: u64,
+    pub wall_s: f64,
+    pub resumed_from_row: u64,
+    pub wall_s_this_run: f64,
+    pub stages: serde_json::Value,
+    pub refine: Option<serde_json::Value>,
+}
+
+/// Write the sidecar and publish the output.
+pub(super) fn finish(
+    sweep: &Sweep,
+    opts: &Options,
+    backend: &dyn Backend,
+    fingerprint: &str,
+    out: Partial,
+    c: Counts,
+) -> Result<()> {
+    let (lo, hi) = c.ids;
+    let text = sidecar::text(&sidecar::Sidecar {
+        tool: "cradle",
+        version: env!("CARGO_PKG_VERSION"),
+        git_revision: sidecar::GIT_REVISION,
+        command: opts.command.clone(),
+        sweep_file: &sweep.origin,
+        sweep,
+        backend: backend.name(),
+        adapter: &backend.adapter(),
+        solver: serde_json::json!({
+            "flags": {
+                "method": opts.overrides.method.map(|m| m.name()),
+                "precision": opts.overrides.precision.map(|p| p.name()),
+                "tolerance": opts.overrides.tolerance,
+            },
+            "base_scene": match sweep.job(lo.min(sweep.total.saturating_sub(1)), &opts.overrides)? {
+                Job::Run { solver, .. } => serde_json::to_value(solver)?,
+                Job::Invalid { .. } => serde_json::Value::Null,
+            },
+        }),
+        ids: [lo, hi],
+        total_scenes: sweep.total,
+        shard: opts.shard.map(|(k, n)| [k, n]),
+        scenes_ok: c.ok,
+        scenes_not_ok: c.done - c.ok,
+        wall_s: c.wall_s,
+        scenes_per_s: c.done as f64 / c.wall_s.max(1e-9),
+        resumed_from_row: c.resumed_from_row,
+        wall_s_this_run: c.wall_s_this_run,
+        stages_s: c.stages,
+        refine: c.refine,
+        fingerprint,
+    })?;
+    out.finish((&sidecar::path(&opts.out), text.as_bytes()))
+}
