@@ -1,7 +1,8 @@
 #!/bin/bash
 # Prepare a lent-GPU session (run here, in the project's root, before asking
 # for the device, so no device time goes to building): the steps of
-# ../shared/gpu/README.md in one go, plus scripts/gpu_tune.sh.
+# scripts/gpu/README.md (vendored from the project's shared/gpu/) in one go,
+# plus scripts/gpu_tune.sh. Everything it copies is in this repository.
 #   .gl/   the Vulkan loader and friends as .deb files (unpacked on the device)
 #   .gpu/  a stripped release `cradle`, bench.sh, compare.py, gpu_tune.sh,
 #          grid100/grid1000 and stress.toml, the numba.cuda peer
@@ -11,8 +12,6 @@
 # and, for the GPU peer: python3 .gpu/numba_cuda_grid.py --nf 1000 --ng 1000 --dt-div 10000
 set -euo pipefail
 cd "$(dirname "$0")/.."
-shared=${SHARED:-../shared}
-[ -d "$shared/gpu" ] || { echo "no $shared/gpu (set SHARED=path/to/shared)" >&2; exit 2; }
 exclude=$(git rev-parse --git-path info/exclude)
 mkdir -p "$(dirname "$exclude")"
 for d in .gl .gpu; do
@@ -26,9 +25,9 @@ if ! ls .gl/libvulkan1_*.deb >/dev/null 2>&1; then
 fi
 cargo build --release
 cp target/release/cradle .gpu/ && strip .gpu/cradle
-cp "$shared/gpu/bench.sh" "$shared/gpu/compare.py" examples/stress.toml scripts/gpu_tune.sh .gpu/
-cp "$shared/peers/numba_cuda_grid.py" .gpu/
-python3 "$shared/gpu/grid.py" 1000 1000 > .gpu/grid1000.toml
-python3 "$shared/gpu/grid.py" 100 100 > .gpu/grid100.toml
+cp scripts/gpu/bench.sh scripts/gpu/compare.py examples/stress.toml scripts/gpu_tune.sh .gpu/
+cp scripts/peers/numba_cuda_grid.py .gpu/
+python3 scripts/grid.py 1000 1000 > .gpu/grid1000.toml
+python3 scripts/grid.py 100 100 > .gpu/grid100.toml
 du -sh .gl .gpu
 echo "ready: carry [.gl, .gpu] (under the 64 MiB limit together)"

@@ -3,7 +3,7 @@
 # stress.toml) under several CRADLE_GPU_PROFILE settings, each with its wall
 # time and what the sidecar says the device did (stages_s.gpu). Copy it into
 # .gpu/ beside the stripped `cradle`, grid1000.toml and stress.toml (see
-# ../shared/gpu/README.md) and run `bash .gpu/gpu_tune.sh [PROFILE ...]`.
+# scripts/gpu/README.md) and run `bash .gpu/gpu_tune.sh [PROFILE ...]`.
 # Outputs do not depend on the profile: every table is compared to the first
 # of its workload and precision. Last, grid1000 in df64 (pairs of f32).
 cd "$(dirname "$0")"

@@ -12,7 +12,7 @@ last table. Measures, on the 10^6-scene mass x gap grid of the 5-ball cradle
   - reading each whole into pandas (`read_csv` / `read_parquet`), and the
     three columns a phase map needs (`usecols` / `columns`), best of --reps;
   - that the two tables hold the same values (every column, bit for bit);
-and on grid100 (../shared/workloads/grid100.toml's sweep, via grid.py 100 100)
+and on grid100 (examples/grid100.toml's sweep, via grid.py 100 100)
 `hertz_cradle.sweep` in this process against the `cradle sweep` process
 (first call apart: it pays for the imports and the GPU probe).
 """

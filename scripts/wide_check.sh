@@ -13,7 +13,7 @@
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 cradle=${CRADLE_BIN:-$root/target/release/cradle}
-grid=${GRID100:-$root/../shared/workloads/grid100.toml}
+grid=${GRID100:-$root/examples/grid100.toml}
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 sweep() { # OUT PROFILE ARGS...
