@@ -108,7 +108,12 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             })
         }
         Command::Fill { table, out } => {
-            let target = guard::output("--out", &out, std::slice::from_ref(&table), &[".tmp"])?;
+            let target = guard::output(
+                "--out",
+                &out,
+                std::slice::from_ref(&table),
+                &[hertz_cradle::output::publish::TMP],
+            )?;
             let Some(g) = hertz_cradle::output::fill::grid(&table)? else {
                 return Err(hertz_cradle::InputError::Data {
                     path: table,

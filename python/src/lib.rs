@@ -115,8 +115,7 @@ fn sweep(
     progress: bool,
 ) -> PyResult<Py<PyDict>> {
     let settings = SweepSettings {
-        backend: choice::<BackendChoice>("--backend", Some(backend))?
-            .unwrap_or(BackendChoice::Auto),
+        backend: BackendChoice::parse_flag("--backend", backend).map_err(|e| to_py(e.into()))?,
         resume,
         shard,
         threads,

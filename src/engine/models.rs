@@ -44,14 +44,6 @@ impl Model {
         }
     }
 
-    pub fn parse(s: &str) -> Option<Model> {
-        Model::ALL.into_iter().find(|m| m.name() == s)
-    }
-
-    pub fn names() -> String {
-        Model::ALL.map(|m| m.name()).join(", ")
-    }
-
     /// Why this model cannot answer `chain`, if it cannot.
     pub fn unsupported(self, chain: &Chain) -> Option<String> {
         let name = self.name();

@@ -18,7 +18,8 @@ use anyhow::{Context, Result};
 use serde_json::Value;
 
 use super::parquet_file::{is_parquet, PartFile};
-use super::partial::{partial_path, write_atomic};
+use super::partial::partial_path;
+use super::publish::write_atomic;
 use super::TableKind;
 use crate::error::InputError;
 

@@ -94,7 +94,7 @@ pub enum Opened {
     AlreadyComplete,
 }
 
-pub use super::publish::write_atomic;
+use super::publish::write_atomic;
 use super::publish::TMP;
 
 fn mismatch(path: &Path, what: String) -> anyhow::Error {

@@ -1,6 +1,7 @@
 //! Atomic publication, the one way every writer makes a file visible under
 //! its final name: the bytes go to a temporary file beside it, which is
-//! synced to disk and then renamed over the name (rename is atomic within a
+//! synced to disk (by the writer that wrote it: `publish` is told a finished
+//! file) and then renamed over the name (rename is atomic within a
 //! directory), and the directory is synced so the rename itself survives a
 //! crash. A kill or a full disk at any point leaves the previous file (or
 //! none) under the name, never a cut-off one.
@@ -16,12 +17,10 @@ use super::guard::with_suffix;
 /// Suffix of the temporary file [`write_with`] writes beside its target.
 pub const TMP: &str = ".tmp";
 
-/// Make the finished file `tmp` visible as `path`: `tmp` synced, renamed
-/// over `path`, the directory synced.
+/// Make the finished file `tmp` visible as `path`: renamed over `path`,
+/// the directory synced. `tmp` must already be on disk: every writer syncs
+/// the file it wrote where it finishes writing it ([`write_with`] does).
 pub fn publish(tmp: &Path, path: &Path) -> Result<()> {
-    File::open(tmp)
-        .and_then(|f| f.sync_all())
-        .with_context(|| format!("cannot write {}", tmp.display()))?;
     fs::rename(tmp, path)
         .with_context(|| format!("cannot rename {} to {}", tmp.display(), path.display()))?;
     // The rename is durable once the directory is (not every filesystem
@@ -53,6 +52,7 @@ pub fn write_with<T>(
         );
         let v = write(&mut w)?;
         w.flush()
+            .and_then(|_| w.get_ref().sync_all())
             .with_context(|| format!("cannot write {}", tmp.display()))?;
         drop(w);
         publish(&tmp, path)?;

@@ -13,6 +13,7 @@ use std::path::Path;
 
 use serde::Serialize;
 
+use crate::choice::Choice;
 use crate::error::{InputError, Source};
 
 /// Defaults of docs/SPEC.md §2: steel balls of 25 mm diameter.
@@ -69,12 +70,6 @@ impl Method {
             Method::Yoshida6 | Method::KahanLi6 => 6,
         }
     }
-    pub fn parse(s: &str) -> Option<Method> {
-        Self::ALL.into_iter().find(|m| m.name() == s)
-    }
-    pub fn names() -> String {
-        Self::ALL.map(|m| m.name()).join(", ")
-    }
 }
 
 impl crate::choice::Choice for Method {
@@ -105,14 +100,6 @@ impl crate::choice::Choice for Precision {
 
 impl Precision {
     pub const ALL: [Precision; 3] = [Precision::F32, Precision::F64, Precision::Df64];
-    pub fn parse(s: &str) -> Option<Precision> {
-        match s {
-            "f32" => Some(Precision::F32),
-            "f64" => Some(Precision::F64),
-            "df64" => Some(Precision::Df64),
-            _ => None,
-        }
-    }
     pub fn name(self) -> &'static str {
         match self {
             Precision::F32 => "f32",
@@ -577,17 +564,17 @@ impl SceneSpec {
         let s = self.solver.clone().unwrap_or_default();
         let method = match &s.method {
             None => None,
-            Some(m) => Some(Method::parse(m).ok_or_else(|| {
+            Some(m) => Some(<Method as Choice>::from_name(m).ok_or_else(|| {
                 c.err(
                     "solver.method",
                     format!("{m:?}"),
-                    format!("one of: {}", Method::names()),
+                    format!("one of: {}", <Method as Choice>::names()),
                 )
             })?),
         };
         let precision = match &s.precision {
             None => None,
-            Some(p) => Some(Precision::parse(p).ok_or_else(|| {
+            Some(p) => Some(<Precision as Choice>::from_name(p).ok_or_else(|| {
                 c.err(
                     "solver.precision",
                     format!("{p:?}"),

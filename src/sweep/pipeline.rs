@@ -204,9 +204,10 @@ fn batch(
             Rows::Arrow(cols.finish()?)
         }
     };
+    // The outcomes are not needed past here: a row callback takes them.
     let typed = match opts.on_row {
         Some(_) => (first..)
-            .zip(&outcomes)
+            .zip(outcomes)
             .map(|(p, o)| sweep.typed_row(ids.at(p), o))
             .collect(),
         None => vec![],

@@ -115,13 +115,13 @@ impl Sweep {
     }
 
     /// Scene `id`'s row, typed.
-    pub fn typed_row(&self, id: u64, outcome: &Outcome) -> SweepRow {
+    pub fn typed_row(&self, id: u64, outcome: Outcome) -> SweepRow {
         let mut params = Vec::with_capacity(self.axes.len());
         self.emit_axis_values(id, &mut |f| params.push(Cell::from(f)));
         SweepRow {
             id,
             params,
-            outcome: outcome.clone(),
+            outcome,
         }
     }
 }
