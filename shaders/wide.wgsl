@@ -1,8 +1,10 @@
-// The kernel with a workgroup per scene (scene.wgsl comes first): invocation
+// The kernel with a workgroup per scene (kernels.wgsl comes first). It has no
+// Rust twin of its own: it runs lanes.rs's steps with the loop over the chain
+// spread over a workgroup (tests/backends.rs checks it against the CPU). Invocation
 // `me` owns body `me` and contact `me` (the contact between bodies me and
 // me + 1), so a long chain's step costs a few operations per invocation and a
 // few barriers instead of a loop over the chain in one invocation (whose
-// 64-body arrays spill to memory). The same functions as integrate.wgsl, in
+// 64-body arrays spill to memory). The same functions as lanes.wgsl, in
 // the same order of operations per body and per contact; what a loop over
 // the chain accumulated is a reduction over the workgroup (minima, maxima,
 // counts: exact in any order), and every invocation keeps its own copy of the
@@ -175,7 +177,7 @@ fn forces() {
     }
 }
 
-// engine::integrate::graded_steps (see integrate.wgsl) — contact me's cap and
+// engine::integrate::graded_steps (see lanes.wgsl) — contact me's cap and
 // kink distance, the least of each over the chain.
 // (plan_steps's barrier: velocities, forces and accelerations are written)
 fn graded_step(s0: real, h: real, h_min: real, tc: real, quarters: u32) -> real {
@@ -352,7 +354,7 @@ fn load(i: u32) {
 
 // engine::integrate::Lanes::ready — free flight to the next onset (the
 // earliest over the contacts, the lowest on ties), isolated impacts in closed
-// form, then the end checks (integrate.wgsl's `ready`).
+// form, then the end checks (lanes.wgsl's `ready`).
 fn ready() -> u32 {
     if (!closed && !pend) {
         workgroupBarrier(); // velocities and overlaps are written
@@ -414,7 +416,7 @@ fn ready() -> u32 {
     return end_check();
 }
 
-// engine::integrate::Lanes::plan_steps — the step (integrate.wgsl's
+// engine::integrate::Lanes::plan_steps — the step (lanes.wgsl's
 // `plan_steps`), then contact me's overlap at its start and, damped, its χ.
 fn plan_steps() {
     workgroupBarrier(); // velocities and overlaps are written
@@ -559,7 +561,7 @@ fn finish(i: u32, end: u32) {
 }
 
 // engine::integrate::integrate — at most `left` loop rounds of scene i (as
-// integrate.wgsl's `integrate`); `ended`: why it stopped, or END_RUNNING.
+// lanes.wgsl's `integrate`); `ended`: why it stopped, or END_RUNNING.
 var<private> ended: u32;
 
 fn integrate(i: u32, left: u32) -> u32 {

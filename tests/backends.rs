@@ -927,6 +927,67 @@ fn gpu_sweep_with_concurrent_calls_writes_the_cpu_bytes() {
     assert!(st.rounds >= 20 && st.dispatches >= 4 * st.rounds, "{st:?}");
 }
 
+/// A sweep asks for its pipelines before its first scene (`Backend::prepare`):
+/// the set it names (size classes from the fewest to the most bodies, with
+/// and without the dissipative terms as the axes need) is what the run then
+/// uses; no pipeline is compiled in the middle of the sweep.
+#[test]
+fn gpu_sweep_builds_every_pipeline_before_its_first_scene() {
+    use hertz_cradle::sweep::run::run;
+    use hertz_cradle::sweep::session::Options;
+    use hertz_cradle::sweep::Sweep;
+    let Some(_) = gpu() else { return };
+    let g = gpu_with(Profile::SOFTWARE);
+    assert!(g.pipelines().is_empty(), "a new context compiles nothing");
+    let text = "[scene]\nballs = 3\nradius = 0.01\ndensity = 7850.0\nyoung_modulus = 200e9\n\
+                poisson_ratio = 0.3\n[scene.launch]\nballs = 1\nvelocity = 0.5\n\
+                [[axis]]\nparam = \"balls\"\nvalues = [3, 12]\n\
+                [[axis]]\nparam = \"restitution\"\nvalues = [1.0, 0.9]\n";
+    let dir = tempfile::tempdir().unwrap();
+    let sweep = Sweep::parse(
+        &hertz_cradle::error::Source::new("pipes.toml", text),
+        dir.path(),
+    )
+    .unwrap();
+    let needs = sweep.needs(&Overrides::default()).unwrap();
+    assert_eq!(
+        (needs.bodies, needs.plain, needs.terms),
+        ((3, 12), true, true)
+    );
+    g.prepare(&needs).unwrap();
+    let before = g.pipelines();
+    let f64 = Precision::F64;
+    assert_eq!(
+        before,
+        vec![
+            (f64, false, 8, false),
+            (f64, false, 16, false),
+            (f64, true, 8, false),
+            (f64, true, 16, false)
+        ]
+    );
+    let opts = Options {
+        out: dir.path().join("pipes.csv"),
+        resume: false,
+        shard: None,
+        overrides: Overrides::default(),
+        command: vec![],
+        error_estimate: false,
+        parquet: false,
+        on_progress: None,
+        on_row: None,
+        cancel: None,
+    };
+    run(&sweep, &opts, &g).unwrap();
+    assert_eq!(g.pipelines(), before, "compiled during the sweep");
+    let rows = std::fs::read_to_string(&opts.out).unwrap();
+    assert_eq!(
+        rows.lines().filter(|l| l.contains(",ok,")).count(),
+        4,
+        "{rows}"
+    );
+}
+
 /// `CRADLE_GPU_PROFILE` text: a base profile, then key=value changes; a bad
 /// key, value or range says what is allowed.
 #[test]

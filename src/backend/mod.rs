@@ -66,6 +66,29 @@ pub trait Backend: Sync {
     fn device_stats(&self) -> Option<DeviceStats> {
         None
     }
+    /// Get ready for scenes as `needs` describes, before the first one runs:
+    /// a GPU backend compiles every pipeline they can use here, so a shader
+    /// that does not build on the device fails before any work.
+    fn prepare(&self, _needs: &Needs) -> anyhow::Result<()> {
+        Ok(())
+    }
+}
+
+/// What a sweep's scenes can ask of a backend, known from the sweep file
+/// before any scene is built ([`crate::sweep::Sweep::needs`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Needs {
+    /// The precision every scene runs in.
+    pub precision: Precision,
+    /// Whether the integrator is needed at all (`--model hertz`, the default;
+    /// the comparison models run on the CPU).
+    pub hertz: bool,
+    /// Whether some scene may be elastic on a free line (the plain pipeline)
+    /// and whether some may be a pendulum or dissipative (the general one).
+    pub plain: bool,
+    pub terms: bool,
+    /// Fewest and most bodies a scene's chain may have.
+    pub bodies: (usize, usize),
 }
 
 /// What a GPU did during a sweep (the sidecar's `stages_s.gpu`).

@@ -14,6 +14,8 @@ use crate::backend::Backend;
 /// Run `sweep` on `backend` as `opts` say. With `opts.threads` unset this
 /// runs on the current rayon pool.
 pub fn run(sweep: &Sweep, opts: &Options, backend: &dyn Backend) -> Result<Summary> {
+    // Every pipeline the scenes can use, built before any output is opened.
+    backend.prepare(&sweep.needs(&opts.overrides)?)?;
     if let Some(spec) = &sweep.refine {
         return super::refine::run(sweep, spec, opts, backend);
     }

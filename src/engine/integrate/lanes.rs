@@ -1,5 +1,5 @@
 //! `L` chains side by side (lane l of every array is one chain) and the step
-//! kernels on them: the twins of `integrate.wgsl`'s forces, kicks, drifts,
+//! kernels on them: the twins of `lanes.wgsl`'s forces, kicks, drifts,
 //! graded steps, exact impacts and free flight, one lane at a time there.
 
 use super::*;

@@ -1,5 +1,5 @@
 //! The integrator — the one place on the Rust side that advances a chain in
-//! time. Its WGSL twin is `shaders/integrate.wgsl` (same function names).
+//! time. Its WGSL twins are in `shaders/` (same function names; see below).
 //!
 //! State, in contact coordinates: the overlap δ_c of every contact and the
 //! velocity v_b of every body. Forces depend only on δ, so nothing is ever
@@ -29,8 +29,8 @@
 //! closes, lowered if it is later driven closed faster) and air drag (the exact decay e^{−γ·s} in every kick).
 
 //!
-//! Split by concern, each the twin of the WGSL in `shaders/` (`integrate.wgsl`,
-//! `wide.wgsl`, `scene.wgsl`: same function names):
+//! Split by concern, each the twin of the WGSL in `shaders/` (`lanes.wgsl`,
+//! `wide.wgsl`, `kernels.wgsl`: same function names):
 //! - this file: what a run is planned with and what it returns (`StepPlan`,
 //!   `Limits`, `Task`, `Run`, `End`, `Observer`);
 //! - `kernels.rs`: the scalar kernels the shader repeats operation for

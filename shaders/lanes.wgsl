@@ -1,4 +1,5 @@
-// The kernel with an invocation per scene (scene.wgsl comes first).
+// Twin of src/engine/integrate/lanes.rs and driver.rs: the kernel with an
+// invocation per scene, one lane (kernels.wgsl comes first).
 //
 // Invocations are workers (layout::GpuQueue): a worker takes the next scene of
 // the batch, integrates it, and when it ends takes another, so a finished

@@ -1,10 +1,11 @@
-// The WGSL twin of src/engine/integrate/ (kernels.rs, lanes.rs): same state (contact overlaps δ,
+// Twin of src/engine/integrate/kernels.rs (and of src/engine/contact.rs for the
+// contact law), shared by both kernels: same state (contact overlaps δ,
 // body velocities, body 0's displacement), same function names, same order of
 // operations, so the GPU gives the CPU's answers. The contact law
 // (hertz_force, contact_force) twins src/engine/contact.rs.
 //
 // This file is what both kernels share: the bindings, a scene's scalar state
-// and constants, the pure functions. A kernel follows it: integrate.wgsl (one
+// and constants, the pure functions. A kernel follows it: lanes.wgsl (one
 // invocation integrates a scene) or wide.wgsl (a workgroup integrates a
 // scene, an invocation per body). src/backend/layout.rs generates the
 // prelude (the `real` alias for the precision and its arithmetic r_*, the

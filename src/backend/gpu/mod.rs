@@ -1,0 +1,342 @@
+//! The GPU backend: the WGSL in `shaders/` through wgpu. Each invocation is
+//! a worker that takes scenes from the batch's queue in turn
+//! (`layout::GpuQueue`); how batches use the device is a [`Profile`]. The
+//! context (device, pipelines, bind-group layout) is built once per sweep and
+//! reused for every batch; device creation is kept apart from the work so
+//! tests can bring their own adapter. By concern:
+//!
+//! | file | what |
+//! |---|---|
+//! | `adapter.rs` | which adapter to open |
+//! | `profile.rs` | [`Profile`], pacing, lavapipe's loop budget, device counters |
+//! | `shaders.rs` | the WGSL assembled, the pipelines (all built by [`Gpu::prepare`]) |
+//! | `pack.rs` | one scene's header, params and state, by name through `layout` |
+//! | `device.rs` | one batch on the device: buffers, rounds in flight, read-back |
+//! | `probe.rs` | the df64 arithmetic probe (tests) |
+
+mod adapter;
+mod device;
+mod pack;
+mod probe;
+mod profile;
+mod shaders;
+
+use std::collections::HashMap;
+use std::sync::{Arc, Mutex};
+
+use anyhow::{anyhow, bail, Context, Result};
+use bytemuck::Pod;
+
+use super::layout::{self, PARAMS, STATE};
+use super::{Backend, DeviceStats, Job, Needs};
+use crate::engine::integrate::Run;
+use crate::engine::real::{Df64, Real};
+use crate::engine::{plan, simulate_chain, Chain, Outcome, Silent, Solver, UNSTEPPED};
+use crate::scene::Precision;
+pub use adapter::{find_adapter, quiet_mesa_without_session, Want};
+use device::WORKGROUP;
+pub use probe::DF64_PROBE_OPS;
+use profile::Tracker;
+pub use profile::{dispatch_budget, Profile};
+use shaders::PipeKey;
+pub use shaders::{
+    shader_source, shader_source_sized, shader_source_wide, size_class, SHADER_BODY, SIZE_CLASSES,
+    WIDE_BODY,
+};
+
+/// Outcomes with their places in a batch.
+type Placed = Vec<(usize, Outcome)>;
+
+pub struct Gpu {
+    device: wgpu::Device,
+    queue: wgpu::Queue,
+    layout: wgpu::BindGroupLayout,
+    pipeline_layout: wgpu::PipelineLayout,
+    /// Pipelines by (precision, terms, size class, kernel).
+    pipes: Mutex<HashMap<PipeKey, Arc<wgpu::ComputePipeline>>>,
+    f64_ok: bool,
+    info: wgpu::AdapterInfo,
+    max_workgroups: u32,
+    /// Largest storage buffer binding (bytes).
+    max_binding: u64,
+    profile: Profile,
+    stats: Tracker,
+}
+
+impl Gpu {
+    /// Open a device on `adapter` and build the bind-group layout. Pipelines
+    /// are compiled by [`Gpu::prepare`] (a sweep asks for every one it will
+    /// use before its first scene) or, for a caller that did not, on first use.
+    pub fn new(adapter: &wgpu::Adapter) -> Result<Gpu> {
+        let info = adapter.get_info();
+        let f64_ok = adapter.features().contains(wgpu::Features::SHADER_F64);
+        let features = if f64_ok {
+            wgpu::Features::SHADER_F64
+        } else {
+            wgpu::Features::empty()
+        };
+        // Ask for what the adapter offers: storage bindings as large as it allows.
+        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+            label: Some("cradle"),
+            required_features: features,
+            required_limits: adapter.limits(),
+            ..Default::default()
+        }))
+        .with_context(|| format!("cannot open a device on {}", info.name))?;
+        let storage = |binding, read_only| wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility: wgpu::ShaderStages::COMPUTE,
+            ty: wgpu::BindingType::Buffer {
+                ty: wgpu::BufferBindingType::Storage { read_only },
+                has_dynamic_offset: false,
+                min_binding_size: None,
+            },
+            count: None,
+        };
+        // The shader's signature: headers, params (read); out_real, out_u32,
+        // queue, workers (read and write).
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("cradle scenes"),
+            entries: &[
+                storage(0, true),
+                storage(1, true),
+                storage(2, false),
+                storage(3, false),
+                storage(4, false),
+                storage(5, false),
+            ],
+        });
+        let pl = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("cradle"),
+            bind_group_layouts: &[Some(&layout)],
+            immediate_size: 0,
+        });
+        let max_workgroups = device.limits().max_compute_workgroups_per_dimension;
+        let max_binding = device.limits().max_storage_buffer_binding_size;
+        let gpu = Gpu {
+            device,
+            queue,
+            layout,
+            pipeline_layout: pl,
+            pipes: Mutex::new(HashMap::new()),
+            f64_ok,
+            info: info.clone(),
+            max_workgroups,
+            max_binding,
+            profile: if info.device_type == wgpu::DeviceType::Cpu {
+                Profile::SOFTWARE
+            } else {
+                Profile::HARDWARE
+            },
+            stats: Tracker::default(),
+        };
+        Ok(gpu)
+    }
+
+    /// The same context using the device as `profile` says.
+    pub fn with_profile(mut self, profile: Profile) -> Gpu {
+        self.profile = profile;
+        self
+    }
+
+    pub fn profile(&self) -> Profile {
+        self.profile
+    }
+
+    pub fn info(&self) -> &wgpu::AdapterInfo {
+        &self.info
+    }
+
+    pub fn has_f64(&self) -> bool {
+        self.f64_ok
+    }
+
+    /// Integrate `jobs` (all valid) in precision `R`; one [`Run`] each, with
+    /// its `dt` column ([`crate::engine::row_dt`] of the plan it ran with).
+    /// `terms`: some scene is a pendulum or dissipative (the general pipeline);
+    /// `wide`: a workgroup per scene.
+    fn runs<R: Real + Pod>(
+        &self,
+        jobs: &[(&Chain, &Solver)],
+        terms: bool,
+        class: usize,
+        wide: bool,
+    ) -> Result<Vec<(Run, f64)>> {
+        let p = R::PRECISION;
+        if p == Precision::F64 && !self.f64_ok {
+            bail!(
+                "{} has no 64-bit float support (SHADER_F64): use --precision df64, f32 or --backend cpu",
+                self.info.name
+            );
+        }
+        let pipe = self.pipeline(p, terms, class, wide)?;
+        let pipe = pipe.as_ref();
+        // Parts small enough for the adapter: workgroups per dimension, and
+        // the largest storage binding (params and state grow with N).
+        let per_group = if wide { 1 } else { WORKGROUP as usize };
+        let max_scenes = (self.max_workgroups as usize) * per_group;
+        let real = std::mem::size_of::<R>() as u64;
+        let bytes = |(ch, s): &(&Chain, &Solver)| {
+            let (nb, nw) = (
+                ch.n_bodies(),
+                crate::engine::solver::weights(s.method).len(),
+            );
+            (layout::len(PARAMS, nb, nw).max(layout::len(STATE, nb, nw)) as u64) * real
+        };
+        let mut out = Vec::with_capacity(jobs.len());
+        let mut start = 0;
+        while start < jobs.len() {
+            let (mut end, mut size) = (start, 0u64);
+            while end < jobs.len()
+                && end - start < max_scenes
+                && size + bytes(&jobs[end]) <= self.max_binding
+            {
+                size += bytes(&jobs[end]);
+                end += 1;
+            }
+            let end = end.max(start + 1);
+            out.extend(self.dispatch::<R>(pipe, &jobs[start..end], wide.then_some(class))?);
+            start = end;
+        }
+        Ok(out)
+    }
+
+    /// One part of a batch on the device: packed, integrated, read back.
+    fn dispatch<R: Real + Pod>(
+        &self,
+        pipe: &wgpu::ComputePipeline,
+        jobs: &[(&Chain, &Solver)],
+        wide: Option<usize>,
+    ) -> Result<Vec<(Run, f64)>> {
+        let mut headers = Vec::with_capacity(jobs.len());
+        let mut dts = Vec::with_capacity(jobs.len());
+        let (mut params, mut state): (Vec<R>, Vec<R>) = (Vec::new(), Vec::new());
+        for (ch, solver) in jobs {
+            let (sp, lim) = plan(ch, solver);
+            let sp = sp.unwrap_or(UNSTEPPED);
+            dts.push(crate::engine::row_dt(&sp));
+            headers.push(pack::header(ch, &sp, &lim, params.len(), state.len()));
+            params.extend(pack::scene_params::<R>(ch, &sp, &lim));
+            state.extend(pack::scene_state::<R>(ch, sp.weights.len()));
+        }
+        let (words, reals) = self.integrate::<R>(pipe, jobs, &headers, params, state, wide)?;
+        Ok(headers
+            .iter()
+            .zip(jobs)
+            .zip(dts)
+            .enumerate()
+            .map(|(i, ((h, (ch, _)), dt))| (pack::run(ch, h, i, &words, &reals), dt))
+            .collect())
+    }
+}
+
+impl Backend for Gpu {
+    fn name(&self) -> &'static str {
+        "gpu"
+    }
+
+    fn adapter(&self) -> String {
+        format!(
+            "{} ({:?}, {:?})",
+            self.info.name, self.info.device_type, self.info.backend
+        )
+    }
+
+    /// [`Profile::calls`].
+    fn max_concurrent_runs(&self) -> usize {
+        self.profile.calls
+    }
+
+    /// [`Profile::batch`].
+    fn batch_size(&self) -> u64 {
+        self.profile.batch
+    }
+
+    fn device_stats(&self) -> Option<DeviceStats> {
+        Some(self.stats.get())
+    }
+
+    /// [`Gpu::prepare`].
+    fn prepare(&self, needs: &Needs) -> Result<()> {
+        Gpu::prepare(self, needs)
+    }
+
+    fn run(&self, jobs: &[Job]) -> Result<Vec<Outcome>> {
+        let mut out: Vec<Option<Outcome>> = vec![None; jobs.len()];
+        // One group per pipeline: precision, terms, size class.
+        let (idx_of, runs_in): (Vec<usize>, Vec<(&Chain, &Solver)>) = jobs
+            .iter()
+            .enumerate()
+            .filter_map(|(i, j)| match j {
+                Job::Run { chain, solver } => Some((i, (chain, solver))),
+                Job::Invalid { .. } => None,
+            })
+            .unzip();
+        let groups = crate::engine::hertz_groups(&runs_in, |ch, s| {
+            (s.precision, ch.needs_terms(), size_class(ch.n_bodies()))
+        });
+        // Long chains on the CPU engine (a profile's `cpu_above`), the rest
+        // on the device: one thread per pipeline group when the profile
+        // takes calls at once (each waits only on its own submissions, so a
+        // group of costly chains does not hold the others back), in turn on
+        // a software adapter.
+        let (cpu, gpu): (Vec<_>, Vec<_>) = groups
+            .into_iter()
+            .partition(|((_, _, class), _)| self.profile.cpu_above.is_some_and(|m| *class > m));
+        let wide = |class: usize| self.profile.wide_above.is_some_and(|m| class > m);
+        let group = |((p, terms, class), idx): ((Precision, bool, usize), Vec<usize>)| {
+            let batch: Vec<(&Chain, &Solver)> = idx.iter().map(|&k| runs_in[k]).collect();
+            let w = wide(class);
+            let runs = match p {
+                Precision::F32 => self.runs::<f32>(&batch, terms, class, w)?,
+                Precision::F64 => self.runs::<f64>(&batch, terms, class, w)?,
+                Precision::Df64 => self.runs::<Df64>(&batch, terms, class, w)?,
+            };
+            Ok(idx
+                .into_iter()
+                .zip(batch)
+                .zip(runs)
+                .map(|((k, (ch, _)), (run, dt))| (k, Outcome::from_run(ch, &run, dt)))
+                .collect::<Vec<_>>())
+        };
+        let cpu_idx: Vec<usize> = cpu.into_iter().flat_map(|(_, idx)| idx).collect();
+        let (done, on_cpu) = std::thread::scope(|sc| -> Result<(Placed, Vec<Outcome>)> {
+            let group = &group;
+            let (handles, mut done): (Vec<_>, Vec<Result<Placed>>) = if self.profile.calls > 1 {
+                let h = gpu
+                    .into_iter()
+                    .map(|g| sc.spawn(move || group(g)))
+                    .collect();
+                (h, vec![])
+            } else {
+                (vec![], gpu.into_iter().map(group).collect())
+            };
+            // On this (pool) thread, beside the device.
+            let on_cpu = crate::engine::simulate_batch_parallel(
+                &cpu_idx.iter().map(|&k| runs_in[k]).collect::<Vec<_>>(),
+            );
+            for h in handles {
+                done.push(
+                    h.join()
+                        .map_err(|_| anyhow!("a GPU group's thread panicked"))?,
+                );
+            }
+            let done = done.into_iter().collect::<Result<Vec<_>>>()?;
+            Ok((done.into_iter().flatten().collect(), on_cpu))
+        })?;
+        self.stats.on_cpu(cpu_idx.len() as u64);
+        for (k, o) in done.into_iter().chain(cpu_idx.into_iter().zip(on_cpu)) {
+            out[idx_of[k]] = Some(o);
+        }
+        Ok(out
+            .into_iter()
+            .zip(jobs)
+            .map(|(o, j)| match (o, j) {
+                (Some(o), _) => o,
+                (None, Job::Invalid { n_balls }) => Outcome::invalid(*n_balls),
+                // Comparison models are closed-form or event-driven: instant on the CPU.
+                (None, Job::Run { chain, solver }) => simulate_chain(chain, solver, &mut Silent),
+            })
+            .collect())
+    }
+}

@@ -1,0 +1,339 @@
+//! How the GPU backend uses a device: the [`Profile`] (scenes per call,
+//! calls at once, workers, pacing), the pace of one batch's dispatches, the
+//! loop budget a software adapter (lavapipe) allows, and the device counters
+//! a sweep reports.
+
+use std::sync::Mutex;
+
+use anyhow::{anyhow, bail, Result};
+
+use crate::backend::DeviceStats;
+use crate::engine::{Chain, Solver};
+
+/// Loop rounds a round of dispatches should give each worker when not timed
+/// (dispatches per round = this / rounds per dispatch, 2..=32).
+const ROUND_ROUNDS: u32 = 2048;
+/// Dispatches per round on a timed profile.
+const TIMED_DISPATCHES: u32 = 4;
+/// Rounds per dispatch a timed profile starts with, and its bounds.
+const FIRST_ROUNDS: u32 = 256;
+const TIMED_ROUNDS: std::ops::RangeInclusive<u32> = 16..=65_536;
+/// A round's wall time on a timed profile is kept between these (seconds):
+/// long enough that the host's look costs little, short enough for driver
+/// watchdogs and for rows to flow.
+const ROUND_S: (f64, f64) = (0.002, 0.016);
+
+/// How the backend uses a device: scenes per call, calls at once, workers,
+/// pacing. A hardware GPU gets [`Profile::HARDWARE`], a software adapter
+/// [`Profile::SOFTWARE`]; `CRADLE_GPU_PROFILE=hardware|software` picks one
+/// (so the hardware path runs on lavapipe in tests and CI), and tests set
+/// their own with [`Gpu::with_profile`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Profile {
+    /// Scenes per sweep batch (`Backend::batch_size`).
+    pub batch: u64,
+    /// Batches on the device at once (`Backend::max_concurrent_runs`); each
+    /// waits only for its own submissions.
+    pub calls: usize,
+    /// Scenes per worker (1: a worker per scene; k: n/k workers, each taking
+    /// about k scenes in turn); a workgroup per scene (`wide_above`) is
+    /// always a worker per scene.
+    pub scenes_per_worker: u32,
+    /// Loop rounds per worker and dispatch; `None`: by time (`timed`) or by
+    /// llvmpipe's loop limit. On a software adapter [`dispatch_budget`] caps
+    /// any of them.
+    pub rounds: Option<u32>,
+    /// Double or halve the rounds per dispatch to keep a round in `ROUND_S`.
+    pub timed: bool,
+    /// Chains of a size class above this run on the CPU engine, beside the
+    /// device (with an invocation per scene a 64-ball chain's 10^5 steps
+    /// take seconds however idle the device is; `wide_above` is the device's
+    /// answer to that, this the way to compare the two on a device).
+    pub cpu_above: Option<usize>,
+    /// Chains of a size class above this run a workgroup per scene (an
+    /// invocation per body, `wide.wgsl`) instead of an invocation per scene:
+    /// a long chain's step then waits on one body's work and a few barriers
+    /// instead of a loop over the chain, and its state is in workgroup
+    /// memory instead of spilled arrays. Few such chains fill a device
+    /// poorly either way; this keeps each one's time short.
+    pub wide_above: Option<usize>,
+}
+
+impl Profile {
+    /// 8,192 scenes a call, four calls at once, half as many workers as
+    /// scenes (16,384 workers and 32,768 scenes resident; not yet tuned on a
+    /// GPU; host memory ~35 MB a call), paced by time; chains of more than 16
+    /// bodies a workgroup per scene (stress.toml's 64-ball chains hold 97%
+    /// of its steps: on the CPU engine beside the device, as before, the GPU
+    /// backend took as long as the CPU backend).
+    pub const HARDWARE: Profile = Profile {
+        batch: 8_192,
+        calls: 4,
+        scenes_per_worker: 2,
+        rounds: None,
+        timed: true,
+        cpu_above: None,
+        wide_above: Some(16),
+    };
+    /// lavapipe runs on the cores the lanes use: the CPU's batch, one call at
+    /// a time (two at once were 3× slower on grid100), a worker per scene,
+    /// rounds by the loop limit, every chain in the shader.
+    pub const SOFTWARE: Profile = Profile {
+        batch: crate::backend::BATCH,
+        calls: 1,
+        scenes_per_worker: 1,
+        rounds: None,
+        timed: false,
+        cpu_above: None,
+        wide_above: None,
+    };
+
+    /// `CRADLE_GPU_PROFILE`'s value, if set: `hardware` or `software`, then
+    /// optionally `,key=value` pairs that change it (for tuning on a device
+    /// without a rebuild), e.g. `hardware,batch=32768,calls=8,cpu_above=16`.
+    pub fn from_env() -> Result<Option<Profile>> {
+        match std::env::var("CRADLE_GPU_PROFILE") {
+            Err(_) => Ok(None),
+            Ok(v) => Profile::parse(&v)
+                .map(Some)
+                .map_err(|e| anyhow!("CRADLE_GPU_PROFILE={v:?}: {e}")),
+        }
+    }
+
+    /// A profile from text (see [`Profile::from_env`]).
+    pub fn parse(text: &str) -> Result<Profile> {
+        let mut parts = text.split(',').map(str::trim);
+        let mut p = match parts.next().unwrap_or("") {
+            "hardware" => Profile::HARDWARE,
+            "software" => Profile::SOFTWARE,
+            other => {
+                bail!("{other:?}: allowed values are hardware and software (then ,key=value pairs)")
+            }
+        };
+        const KEYS: &str = "batch (1..=1048576), calls (1..=64), scenes_per_worker (1..=1024), rounds (1..=65536 or auto), timed (true|false), cpu_above (2..=64 or none), wide_above (1..=64 or none)";
+        for kv in parts {
+            let Some((k, v)) = kv.split_once('=') else {
+                bail!("{kv:?}: expected key=value; keys: {KEYS}");
+            };
+            let int = |lo: u64, hi: u64| -> Result<u64> {
+                v.parse::<u64>()
+                    .ok()
+                    .filter(|n| (lo..=hi).contains(n))
+                    .ok_or_else(|| anyhow!("{k}={v}: allowed {lo}..={hi}"))
+            };
+            match k {
+                "batch" => p.batch = int(1, 1 << 20)?,
+                "calls" => p.calls = int(1, 64)? as usize,
+                "scenes_per_worker" => p.scenes_per_worker = int(1, 1024)? as u32,
+                "rounds" if v == "auto" => p.rounds = None,
+                "rounds" => p.rounds = Some(int(1, 65_536)? as u32),
+                "timed" => {
+                    p.timed = v
+                        .parse()
+                        .map_err(|_| anyhow!("{k}={v}: allowed true or false"))?
+                }
+                "cpu_above" if v == "none" => p.cpu_above = None,
+                "cpu_above" => p.cpu_above = Some(int(2, 64)? as usize),
+                "wide_above" if v == "none" => p.wide_above = None,
+                "wide_above" => p.wide_above = Some(int(1, 64)? as usize),
+                _ => bail!("unknown key {k:?}; keys: {KEYS}"),
+            }
+        }
+        Ok(p)
+    }
+}
+
+/// Rounds per dispatch and dispatches per round of one batch.
+pub(super) struct Pace {
+    pub(super) rounds: u32,
+    pub(super) dispatches: u32,
+    timed: bool,
+    /// The most rounds per dispatch (a software adapter's loop limit).
+    most: u32,
+}
+
+impl Pace {
+    /// How this batch is paced: rounds per dispatch and dispatches per round.
+    pub(super) fn new(
+        pr: Profile,
+        software: bool,
+        jobs: &[(&Chain, &Solver)],
+        wide: Option<usize>,
+    ) -> Pace {
+        let most = if software {
+            dispatch_budget(jobs, wide)
+        } else {
+            u32::MAX
+        };
+        let rounds = pr
+            .rounds
+            .unwrap_or(if pr.timed { FIRST_ROUNDS } else { most })
+            .min(most)
+            .max(1);
+        Pace {
+            rounds,
+            // Enough dispatches that a round is worth a look at the counters.
+            dispatches: if pr.timed {
+                TIMED_DISPATCHES
+            } else {
+                (ROUND_ROUNDS / rounds).clamp(2, 32)
+            },
+            timed: pr.timed,
+            most,
+        }
+    }
+
+    /// After a round that took `secs` (between two looks), on a timed
+    /// profile: double or halve the rounds per dispatch to stay in `ROUND_S`.
+    pub(super) fn adapt(&mut self, secs: f64) {
+        if !self.timed {
+            return;
+        }
+        let r = if secs < ROUND_S.0 {
+            self.rounds.saturating_mul(2)
+        } else if secs > ROUND_S.1 {
+            self.rounds / 2
+        } else {
+            self.rounds
+        };
+        self.rounds = r
+            .clamp(*TIMED_ROUNDS.start(), *TIMED_ROUNDS.end())
+            .min(self.most);
+    }
+}
+
+/// Dispatches, rounds and the time any submission was in flight.
+#[derive(Default)]
+pub(super) struct Tracker {
+    inner: Mutex<(DeviceStats, usize, Option<std::time::Instant>)>,
+}
+
+impl Tracker {
+    pub(super) fn submitted(&self, dispatches: u64) {
+        let mut g = self.inner.lock().unwrap_or_else(|e| e.into_inner());
+        let (st, n, since) = &mut *g;
+        st.dispatches += dispatches;
+        st.rounds += u64::from(dispatches > 0);
+        if *n == 0 {
+            *since = Some(std::time::Instant::now());
+        }
+        *n += 1;
+    }
+
+    pub(super) fn completed(&self) {
+        let mut g = self.inner.lock().unwrap_or_else(|e| e.into_inner());
+        let (st, n, since) = &mut *g;
+        *n = n.saturating_sub(1);
+        if *n == 0 {
+            if let Some(t) = since.take() {
+                st.in_flight_s += t.elapsed().as_secs_f64();
+            }
+        }
+    }
+
+    pub(super) fn on_cpu(&self, scenes: u64) {
+        self.inner
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .0
+            .cpu_scenes += scenes;
+    }
+
+    pub(super) fn get(&self) -> DeviceStats {
+        self.inner.lock().unwrap_or_else(|e| e.into_inner()).0
+    }
+}
+
+/// Loop iterations of one step of `ch` in `n_weights` substeps (the
+/// pendulum's sine is a 10-term loop per body, air drag's decay up to ~25),
+/// or of one closed-form impact (its fifth root: ~10 scalings and 5 Newton
+/// steps at everyday speeds), whichever is more.
+fn loops_per_step(ch: &Chain, n_weights: usize) -> usize {
+    let nb = ch.n_bodies();
+    let nc = nb - 1;
+    let pend = if ch.is_pendulum() { 11 * nb } else { 0 };
+    let drag = if ch.air_drag > 0.0 { 2 * (nb + 25) } else { 0 };
+    let step = n_weights * (2 * nb + 2 * nc + pend + drag) + 9 * nc + nb + 8;
+    step.max(3 * nc + 32)
+}
+
+/// [`loops_per_step`] of the kernel with a workgroup per scene and `class`
+/// invocations: an invocation loops over its own body's work, invocation 0
+/// over a pendulum's positions, and every reduction over log2(class) levels
+/// (at most six a loop round).
+fn loops_per_step_wide(ch: &Chain, n_weights: usize, class: usize) -> usize {
+    let nb = ch.n_bodies();
+    let pend = if ch.is_pendulum() { nb + 11 } else { 0 };
+    let drag = if ch.air_drag > 0.0 { 50 } else { 0 };
+    let reductions = 6 * (class.trailing_zeros() as usize + 1);
+    let step = n_weights * (2 + pend + drag) + n_weights + reductions + 16;
+    step.max(reductions + 32)
+}
+
+/// [`loops_per_step`] a worker may run per dispatch on a software adapter.
+/// Measured on lavapipe (LLVM 15, 256-bit): the worker loop gave wrong
+/// outcomes on the 2–8-ball slice of examples/stress.toml from about 25,000
+/// on (the one-scene-per-invocation loop before it had passed at 30,000);
+/// 12,000 keeps a margin of 2. `tests/backends.rs` runs that slice.
+const LOOP_CAP: usize = 12_000;
+
+/// Loop rounds per worker and dispatch on a software adapter: llvmpipe runs
+/// the invocations of a SIMD vector in lock step and silently cuts loops short
+/// once the vector has run about 2^16 loop iterations (measured: 1,986 Verlet
+/// steps of a 5-ball chain), so the costliest scene of the batch sets it
+/// (`LOOP_CAP`; a worker's rounds over all the scenes it takes in one
+/// dispatch, one round charged per scene taken, stay within it; real GPUs
+/// have watchdogs instead, and are paced by time). At most 4096.
+/// `wide`: the kernel with a workgroup of `class` invocations per scene.
+pub fn dispatch_budget(jobs: &[(&Chain, &Solver)], wide: Option<usize>) -> u32 {
+    let worst = jobs
+        .iter()
+        .map(|(ch, s)| {
+            let nw = crate::engine::solver::weights(s.method).len();
+            match wide {
+                Some(class) => loops_per_step_wide(ch, nw, class),
+                None => loops_per_step(ch, nw),
+            }
+        })
+        .max()
+        .unwrap_or(1);
+    (LOOP_CAP / worst).clamp(1, 4096) as u32
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Timed pacing doubles under 2 ms a round, halves over 16 ms, stays in
+    /// 16..=65,536 and under a software adapter's loop limit; untimed never moves.
+    #[test]
+    fn timed_pace_doubles_halves_and_keeps_its_bounds() {
+        let pace = |rounds, timed, most| Pace {
+            rounds,
+            dispatches: TIMED_DISPATCHES,
+            timed,
+            most,
+        };
+        let mut p = pace(256, true, u32::MAX);
+        p.adapt(0.001);
+        assert_eq!(p.rounds, 512);
+        p.adapt(0.010);
+        assert_eq!(p.rounds, 512);
+        p.adapt(0.050);
+        assert_eq!(p.rounds, 256);
+        for _ in 0..30 {
+            p.adapt(0.0001);
+        }
+        assert_eq!(p.rounds, 65_536);
+        for _ in 0..30 {
+            p.adapt(1.0);
+        }
+        assert_eq!(p.rounds, 16);
+        let mut q = pace(40, true, 57);
+        q.adapt(0.0);
+        assert_eq!(q.rounds, 57);
+        let mut r = pace(40, false, 57);
+        r.adapt(0.0);
+        assert_eq!(r.rounds, 40);
+    }
+}

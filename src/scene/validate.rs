@@ -1,0 +1,506 @@
+//! Checking a [`SceneSpec`] into a [`Scene`] (docs/SPEC.md §2, §4): one
+//! step per part of the scene file, each naming the key, the value and what
+//! is allowed.
+
+use std::fmt::Display;
+
+use super::*;
+
+const POS: &str = "must be a finite number > 0";
+
+struct Check<'a> {
+    spec: &'a SceneSpec,
+}
+
+impl Check<'_> {
+    fn err(&self, key: &str, value: impl Display, allowed: impl Into<String>) -> InputError {
+        InputError::Invalid {
+            origin: self.spec.origin.clone(),
+            line: self.spec.line_of(key),
+            key: key.to_string(),
+            value: value.to_string(),
+            allowed: allowed.into(),
+        }
+    }
+
+    fn num(
+        &self,
+        key: &str,
+        x: f64,
+        ok: fn(f64) -> bool,
+        allowed: &str,
+    ) -> Result<f64, InputError> {
+        if x.is_finite() && ok(x) {
+            Ok(x)
+        } else {
+            Err(self.err(key, x, allowed))
+        }
+    }
+
+    fn opt(
+        &self,
+        key: &str,
+        x: Option<f64>,
+        ok: fn(f64) -> bool,
+        allowed: &str,
+    ) -> Result<Option<f64>, InputError> {
+        x.map(|x| self.num(key, x, ok, allowed)).transpose()
+    }
+
+    /// A per-ball (or per-contact) array of `n` values, each passing `ok`.
+    #[allow(clippy::too_many_arguments)]
+    fn per(
+        &self,
+        key: &str,
+        v: Option<&PerBall>,
+        default: f64,
+        n: usize,
+        what: &str,
+        ok: fn(f64) -> bool,
+        allowed: &str,
+    ) -> Result<Vec<f64>, InputError> {
+        let values = match v {
+            None => vec![default; n],
+            Some(PerBall::Scalar(x)) => vec![*x; n],
+            Some(PerBall::List(l)) if l.len() == n => l.clone(),
+            Some(p @ PerBall::List(l)) => {
+                return Err(self.err(
+                    key,
+                    p,
+                    format!(
+                        "an array of {n} values (one per {what}) or one number; got {}",
+                        l.len()
+                    ),
+                ))
+            }
+        };
+        // The key is only spelt out for an error (this runs for every scene).
+        for (i, &x) in values.iter().enumerate() {
+            if x.is_finite() && ok(x) {
+                continue;
+            }
+            let k = if matches!(v, Some(PerBall::List(_))) {
+                format!("{key}[{i}]")
+            } else {
+                key.to_string()
+            };
+            self.num(&k, x, ok, allowed)?;
+        }
+        Ok(values)
+    }
+}
+
+fn positive(x: f64) -> bool {
+    x > 0.0
+}
+fn non_negative(x: f64) -> bool {
+    x >= 0.0
+}
+fn any(_: f64) -> bool {
+    true
+}
+
+impl SceneSpec {
+    /// Check every key (docs/SPEC.md §2, §4) and resolve defaults.
+    pub fn validate(&self) -> Result<Scene, InputError> {
+        let c = Check { spec: self };
+        let n = self.balls()?;
+        let (radius, mass, young_modulus, poisson_ratio) = self.materials(&c, n)?;
+        let (gap, glue) = self.gaps_and_glue(&c, n)?;
+        let pendulum = self.pendulum(&c)?;
+        let (velocity, displacement) = self.launch(&c, n, pendulum.as_ref())?;
+        check_glued_launch(&c, &glue, &velocity, &displacement)?;
+        let damping = self.damping(&c, pendulum.as_ref())?;
+        let (duration, max_steps) = self.stop(&c, pendulum.as_ref())?;
+        let solver = self.solver(&c)?;
+        Ok(Scene {
+            n,
+            radius,
+            mass,
+            young_modulus,
+            poisson_ratio,
+            gap,
+            glue,
+            velocity,
+            displacement,
+            pendulum,
+            damping,
+            duration,
+            max_steps,
+            solver,
+        })
+    }
+
+    fn balls(&self) -> Result<usize, InputError> {
+        let c = Check { spec: self };
+        Ok(match self.balls {
+            None => {
+                return Err(InputError::Missing {
+                    origin: self.origin.clone(),
+                    line: None,
+                    key: "balls".into(),
+                    help: format!("the number of balls, 2 ..= {MAX_BALLS}"),
+                })
+            }
+            Some(b) if (2..=MAX_BALLS as i64).contains(&b) => b as usize,
+            Some(b) => return Err(c.err("balls", b, format!("an integer in 2 ..= {MAX_BALLS}"))),
+        })
+    }
+
+    /// Radius, mass (or density), Young's modulus and Poisson ratio per ball.
+    fn materials(&self, c: &Check, n: usize) -> Result<Materials, InputError> {
+        let radius = c.per(
+            "radius",
+            self.radius.as_ref(),
+            DEFAULT_RADIUS,
+            n,
+            "ball",
+            positive,
+            POS,
+        )?;
+        let mass = match (&self.mass, &self.density) {
+            (Some(_), Some(_)) => {
+                return Err(c.err(
+                    "density",
+                    "(also `mass`)",
+                    "give `mass` or `density`, not both",
+                ))
+            }
+            (Some(m), None) => c.per("mass", Some(m), 0.0, n, "ball", positive, POS)?,
+            (None, d) => {
+                let rho = c.per(
+                    "density",
+                    d.as_ref(),
+                    DEFAULT_DENSITY,
+                    n,
+                    "ball",
+                    positive,
+                    POS,
+                )?;
+                rho.iter()
+                    .zip(&radius)
+                    .map(|(rho, r)| rho * 4.0 / 3.0 * std::f64::consts::PI * r * r * r)
+                    .collect()
+            }
+        };
+        let young_modulus = c.per(
+            "young_modulus",
+            self.young_modulus.as_ref(),
+            DEFAULT_YOUNG,
+            n,
+            "ball",
+            positive,
+            POS,
+        )?;
+        let poisson_ratio = c.per(
+            "poisson_ratio",
+            self.poisson_ratio.as_ref(),
+            DEFAULT_POISSON,
+            n,
+            "ball",
+            |x| (0.0..0.5).contains(&x),
+            "must be in [0, 0.5)",
+        )?;
+        Ok((radius, mass, young_modulus, poisson_ratio))
+    }
+
+    /// Gaps and glue per contact.
+    fn gaps_and_glue(&self, c: &Check, n: usize) -> Result<(Vec<f64>, Vec<bool>), InputError> {
+        let gap = c.per(
+            "gap",
+            self.gap.as_ref(),
+            0.0,
+            n - 1,
+            "pair of neighbours",
+            non_negative,
+            "must be ≥ 0 (m)",
+        )?;
+        let glue = match &self.glue {
+            None => vec![false; n - 1],
+            Some(g) => {
+                let allowed = format!(
+                    "a string of {} characters, `=` (glued) or `-` (free), e.g. \"={}\"",
+                    n - 1,
+                    "-".repeat(n - 2)
+                );
+                if g.chars().count() != n - 1 || g.chars().any(|ch| ch != '=' && ch != '-') {
+                    return Err(c.err("glue", format!("{g:?}"), allowed));
+                }
+                g.chars().map(|ch| ch == '=').collect()
+            }
+        };
+
+        Ok((gap, glue))
+    }
+
+    fn pendulum(&self, c: &Check) -> Result<Option<Pendulum>, InputError> {
+        Ok(match &self.pendulum {
+            None => None,
+            Some(p) => Some(Pendulum {
+                length: match p.length {
+                    Some(l) => c.num("pendulum.length", l, positive, POS)?,
+                    None => {
+                        return Err(InputError::Missing {
+                            origin: self.origin.clone(),
+                            line: self.line_of("pendulum"),
+                            key: "pendulum.length".into(),
+                            help: "the string length in m, > 0".into(),
+                        })
+                    }
+                },
+                gravity: c
+                    .opt("pendulum.gravity", p.gravity, positive, POS)?
+                    .unwrap_or(STANDARD_GRAVITY),
+            }),
+        })
+    }
+
+    /// Initial velocities and displacements: `velocity` or `[launch]`.
+    fn launch(
+        &self,
+        c: &Check,
+        n: usize,
+        pendulum: Option<&Pendulum>,
+    ) -> Result<(Vec<f64>, Vec<f64>), InputError> {
+        let gravity = pendulum.map_or(STANDARD_GRAVITY, |p| p.gravity);
+        let mut displacement = vec![0.0; n];
+        let velocity = match (&self.velocity, &self.launch) {
+            (Some(_), Some(_)) => {
+                return Err(c.err(
+                    "launch",
+                    "(also `velocity`)",
+                    "give `velocity` or `[launch]`, not both",
+                ))
+            }
+            (None, None) => {
+                return Err(InputError::Missing {
+                    origin: self.origin.clone(),
+                    line: None,
+                    key: "velocity".into(),
+                    help: "give `velocity = [...]` (m/s, one per ball) or a `[launch]` table"
+                        .into(),
+                })
+            }
+            (Some(v), None) => c.per(
+                "velocity",
+                Some(&PerBall::List(v.clone())),
+                0.0,
+                n,
+                "ball",
+                any,
+                "must be a finite number (m/s)",
+            )?,
+            (None, Some(l)) => {
+                let k = match l.balls {
+                    Some(k) if (1..=n as i64).contains(&k) => k as usize,
+                    Some(k) => {
+                        return Err(c.err("launch.balls", k, format!("an integer in 1 ..= {n}")))
+                    }
+                    None => 1,
+                };
+                let speed = match (l.height, l.velocity) {
+                    (Some(_), Some(_)) => {
+                        return Err(c.err(
+                            "launch.height",
+                            "(also `launch.velocity`)",
+                            "give `height` or `velocity`, not both",
+                        ))
+                    }
+                    (Some(h), None) => {
+                        let h = c.num(
+                            "launch.height",
+                            h,
+                            positive,
+                            "must be a finite height > 0 (m)",
+                        )?;
+                        match pendulum {
+                            // Free line: the speed at impact.
+                            None => (2.0 * gravity * h).sqrt(),
+                            // Pendulum: lifted along the arc, released from rest.
+                            Some(p) => {
+                                if h > p.length {
+                                    return Err(c.err(
+                                        "launch.height",
+                                        h,
+                                        format!(
+                                            "at most the string length {} m (higher, the string goes slack)",
+                                            p.length
+                                        ),
+                                    ));
+                                }
+                                let arc = p.length * (1.0 - h / p.length).acos();
+                                for x in displacement.iter_mut().take(k) {
+                                    *x = -arc;
+                                }
+                                0.0
+                            }
+                        }
+                    }
+                    (None, Some(v)) => {
+                        c.num("launch.velocity", v, any, "must be a finite speed (m/s)")?
+                    }
+                    (None, None) => {
+                        return Err(InputError::Missing {
+                            origin: self.origin.clone(),
+                            line: self.line_of("launch"),
+                            key: "launch.height".into(),
+                            help: "give `height` (m) or `velocity` (m/s)".into(),
+                        })
+                    }
+                };
+                (0..n).map(|i| if i < k { speed } else { 0.0 }).collect()
+            }
+        };
+        Ok((velocity, displacement))
+    }
+
+    fn damping(
+        &self,
+        c: &Check,
+        pendulum: Option<&Pendulum>,
+    ) -> Result<Option<Damping>, InputError> {
+        let damping = match &self.damping {
+            None => None,
+            Some(d) => Some(Damping {
+                restitution: c
+                    .opt(
+                        "damping.restitution",
+                        d.restitution,
+                        |e| e > 0.0 && e <= 1.0,
+                        "must be in (0, 1]",
+                    )?
+                    .unwrap_or(1.0),
+                air_drag: c
+                    .opt(
+                        "damping.air_drag",
+                        d.air_drag,
+                        non_negative,
+                        "must be ≥ 0 (1/s)",
+                    )?
+                    .unwrap_or(0.0),
+            }),
+        };
+        if let (Some(d), None) = (&damping, pendulum) {
+            if d.air_drag > 0.0 {
+                return Err(c.err(
+                    "damping.air_drag",
+                    d.air_drag,
+                    "0 without [pendulum] (air drag is modelled for pendulum runs; a free-line collision lasts microseconds)",
+                ));
+            }
+        }
+        Ok(damping)
+    }
+
+    /// `[stop]`: the duration (required for a pendulum) and the step cap.
+    fn stop(
+        &self,
+        c: &Check,
+        pendulum: Option<&Pendulum>,
+    ) -> Result<(Option<f64>, Option<u64>), InputError> {
+        let stop = self.stop.clone().unwrap_or_default();
+        let duration = c.opt(
+            "stop.duration",
+            stop.duration,
+            positive,
+            "must be a finite time > 0 (s)",
+        )?;
+        if pendulum.is_some() && duration.is_none() {
+            return Err(InputError::Missing {
+                origin: self.origin.clone(),
+                line: self.line_of("pendulum"),
+                key: "stop.duration".into(),
+                help: "a pendulum runs for a given simulated time: add `[stop] duration = ...` (s)"
+                    .into(),
+            });
+        }
+        let max_steps = match stop.max_steps {
+            None => None,
+            Some(s) if s >= 1 => Some(s as u64),
+            Some(s) => return Err(c.err("stop.max_steps", s, "an integer ≥ 1")),
+        };
+        Ok((duration, max_steps))
+    }
+
+    fn solver(&self, c: &Check) -> Result<SolverChoice, InputError> {
+        let s = self.solver.clone().unwrap_or_default();
+        let method = match &s.method {
+            None => None,
+            Some(m) => Some(<Method as Choice>::from_name(m).ok_or_else(|| {
+                c.err(
+                    "solver.method",
+                    format!("{m:?}"),
+                    format!("one of: {}", <Method as Choice>::names()),
+                )
+            })?),
+        };
+        let precision = match &s.precision {
+            None => None,
+            Some(p) => Some(<Precision as Choice>::from_name(p).ok_or_else(|| {
+                c.err(
+                    "solver.precision",
+                    format!("{p:?}"),
+                    "\"f32\", \"f64\" or \"df64\"",
+                )
+            })?),
+        };
+        if s.dt.is_some() && s.tolerance.is_some() {
+            return Err(c.err(
+                "solver.dt",
+                "(also `solver.tolerance`)",
+                "give `dt` or `tolerance`, not both",
+            ));
+        }
+        Ok(SolverChoice {
+            method,
+            dt: c.opt(
+                "solver.dt",
+                s.dt,
+                positive,
+                "must be a finite time step > 0 (s)",
+            )?,
+            tolerance: c.opt(
+                "solver.tolerance",
+                s.tolerance,
+                |t| t > 0.0 && t < 1.0,
+                "must be in (0, 1)",
+            )?,
+            precision,
+        })
+    }
+}
+
+/// Radius, mass, Young's modulus, Poisson ratio: one value per ball each.
+type Materials = (Vec<f64>, Vec<f64>, Vec<f64>, Vec<f64>);
+
+/// Glued balls move as one body: launched alike, lifted alike.
+fn check_glued_launch(
+    c: &Check,
+    glue: &[bool],
+    velocity: &[f64],
+    displacement: &[f64],
+) -> Result<(), InputError> {
+    for (i, w) in glue.iter().enumerate() {
+        if *w && velocity[i] != velocity[i + 1] {
+            return Err(c.err(
+                "velocity",
+                format!(
+                    "{} and {} for balls {i} and {}",
+                    velocity[i],
+                    velocity[i + 1],
+                    i + 1
+                ),
+                "glued balls must be launched with the same velocity",
+            ));
+        }
+        if *w && displacement[i] != displacement[i + 1] {
+            return Err(c.err(
+                "launch.balls",
+                format!("lifts ball {i} but not ball {}", i + 1),
+                "glued balls must be lifted together",
+            ));
+        }
+    }
+
+    Ok(())
+}
