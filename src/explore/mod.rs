@@ -129,18 +129,11 @@ fn load(path: &Path) -> Result<Data> {
         })
         .collect();
     // The grid, from the sidecar's sweep.
-    let sc: Option<Json_> = std::fs::read_to_string(crate::output::sidecar::path(path))
-        .ok()
-        .and_then(|t| serde_json::from_str(&t).ok());
+    let sc = crate::output::sidecar::read(path).ok().flatten();
     let mut axes = vec![];
     if let Some(sc) = &sc {
-        if sc["sweep"].get("layout").is_none() {
-            for a in sc["sweep"]["axes"].as_array().into_iter().flatten() {
-                if let (Some(name), Some(v)) = (a["name"].as_str(), Values::from_json(&a["values"]))
-                {
-                    axes.push((name.to_string(), v));
-                }
-            }
+        if sc.sweep.get("layout").is_none() {
+            axes = sc.axes().unwrap_or_default();
         }
     }
     let dims: Vec<u64> = axes.iter().map(|(_, v)| v.len() as u64).collect();
@@ -148,7 +141,7 @@ fn load(path: &Path) -> Result<Data> {
         axes.clear();
     }
     // The sweep file, as named in the sidecar (from where it ran, or beside the table).
-    let (sweep, sweep_problem) = match sc.as_ref().and_then(|s| s["sweep_file"].as_str()) {
+    let (sweep, sweep_problem) = match sc.as_ref().map(|s| s.sweep_file.as_str()) {
         None => (
             None,
             "the table has no sidecar naming its sweep file".to_string(),

@@ -10,7 +10,6 @@ use std::io::{BufRead, BufReader, Read, Write};
 use std::path::Path;
 
 use anyhow::{Context, Result};
-use serde_json::Value as Json;
 
 use crate::error::InputError;
 use crate::sweep::axis::{Value, Values};
@@ -32,23 +31,23 @@ fn bad(path: &Path, what: impl Into<String>) -> anyhow::Error {
 /// The grid of a refined table (from its sidecar), or `None` when the table
 /// is not refined.
 pub fn grid(table: &Path) -> Result<Option<Grid>> {
-    let sc = super::sidecar::path(table);
-    let Ok(text) = std::fs::read_to_string(&sc) else {
+    let Ok(Some(sc)) = super::sidecar::read(table) else {
         return Ok(None);
     };
-    let Ok(j) = serde_json::from_str::<Json>(&text) else {
-        return Ok(None);
-    };
-    if j.get("refine").is_none() {
+    if sc.refine.is_none() {
         return Ok(None);
     }
-    let axes = j["sweep"]["axes"]
-        .as_array()
-        .ok_or_else(|| bad(&sc, "a refined table's sidecar without the sweep's axes"))?
-        .iter()
-        .map(|a| Values::from_json(&a["values"]))
-        .collect::<Option<Vec<_>>>()
-        .ok_or_else(|| bad(&sc, "unreadable axis values in the sidecar"))?;
+    let axes = sc
+        .axes()
+        .ok_or_else(|| {
+            bad(
+                &super::sidecar::path(table),
+                "a refined table's sidecar without readable axis values",
+            )
+        })?
+        .into_iter()
+        .map(|(_, v)| v)
+        .collect::<Vec<_>>();
     let dims = axes.iter().map(|v| v.len() as u64).collect();
     Ok(Some(Grid { dims, axes }))
 }

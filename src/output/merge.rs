@@ -15,13 +15,14 @@ use std::io::{BufRead, BufReader, BufWriter, Write};
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
-use serde_json::Value;
 
 use super::parquet_file::{is_parquet, PartFile};
 use super::partial::partial_path;
 use super::publish::write_atomic;
+use super::sidecar::{Level, Sidecar};
 use super::TableKind;
 use crate::error::InputError;
+use crate::sweep::session::Fingerprint;
 
 fn bad(path: &Path, what: impl Into<String>) -> anyhow::Error {
     InputError::Data {
@@ -34,52 +35,48 @@ fn bad(path: &Path, what: impl Into<String>) -> anyhow::Error {
 /// One part: its file, its sidecar, the id range the sidecar names.
 struct Part {
     path: PathBuf,
-    sidecar: Value,
+    sidecar: Sidecar,
     ids: (u64, u64),
 }
 
 impl Part {
     /// A shard of a refined sweep: it holds some of its ids, not all.
     fn sparse(&self) -> bool {
-        self.sidecar.get("refine").is_some()
+        self.sidecar.refine.is_some()
     }
-}
 
-/// The fingerprint with its shard removed: what every part must share.
-fn sweep_key(fingerprint: &str) -> Option<Value> {
-    let mut v: Value = serde_json::from_str(fingerprint).ok()?;
-    v.as_object_mut()?.insert("shard".into(), Value::Null);
-    Some(v)
+    /// Its fingerprint less the shard: what every part must share.
+    fn sweep_key(&self) -> Option<Fingerprint> {
+        Fingerprint::decode(&self.sidecar.fingerprint).map(|f| f.without_shard())
+    }
 }
 
 fn read_part(p: &Path) -> Result<Part> {
     let sc = super::sidecar::path(p);
-    let text = std::fs::read_to_string(&sc).map_err(|e| {
-        bad(
-            p,
-            format!(
-                "its sidecar {} cannot be read ({e}): merge needs it to know the sweep and the ids this part holds; run the shard again (with --resume if it was interrupted)",
-                sc.display()
-            ),
-        )
-    })?;
-    let sidecar: Value = serde_json::from_str(&text).map_err(|e| {
-        bad(
-            &sc,
-            format!("not a cradle sidecar ({e}); run the shard again"),
-        )
-    })?;
-    let ids = sidecar
-        .get("ids")
-        .and_then(|v| Some((v.get(0)?.as_u64()?, v.get(1)?.as_u64()?)))
-        .filter(|(lo, hi)| lo <= hi);
-    let Some(ids) = ids else {
-        return Err(bad(&sc, "no valid `ids` range; run the shard again"));
+    let sidecar = match super::sidecar::read(p) {
+        Ok(Some(s)) => s,
+        Ok(None) => {
+            return Err(bad(
+                p,
+                format!(
+                    "its sidecar {} cannot be read (no such file): merge needs it to know the sweep and the ids this part holds; run the shard again (with --resume if it was interrupted)",
+                    sc.display()
+                ),
+            ))
+        }
+        Err(InputError::Data { path, what }) => {
+            return Err(bad(&path, format!("{what}; run the shard again")))
+        }
+        Err(e) => return Err(e.into()),
     };
+    let [lo, hi] = sidecar.ids;
+    if lo > hi {
+        return Err(bad(&sc, "no valid `ids` range; run the shard again"));
+    }
     Ok(Part {
         path: p.to_path_buf(),
         sidecar,
-        ids,
+        ids: (lo, hi),
     })
 }
 
@@ -134,25 +131,15 @@ pub fn merge(inputs: &[PathBuf], out: &Path) -> Result<u64> {
         .into());
     }
     let parquet = formats[0];
-    let fp = |p: &Part| {
-        p.sidecar
-            .get("fingerprint")
-            .and_then(|f| f.as_str())
-            .and_then(sweep_key)
-    };
-    let key0 = fp(&parts[0]);
-    let total = parts[0]
-        .sidecar
-        .get("total_scenes")
-        .and_then(|t| t.as_u64());
-    let (Some(key0), Some(total)) = (key0, total) else {
+    let Some(key0) = parts[0].sweep_key() else {
         return Err(bad(
             first,
-            "its sidecar has no fingerprint or scene count (made by an older cradle?); run the shard again",
+            "its sidecar has no readable fingerprint (made by an older cradle?); run the shard again",
         ));
     };
+    let total = parts[0].sidecar.total_scenes;
     for p in &parts[1..] {
-        if fp(p).as_ref() != Some(&key0) {
+        if p.sweep_key().as_ref() != Some(&key0) {
             return Err(bad(
                 &p.path,
                 format!(
@@ -217,73 +204,9 @@ pub fn merge(inputs: &[PathBuf], out: &Path) -> Result<u64> {
     }
     let n = r?;
 
-    let mut sc = parts[0].sidecar.clone();
-    let sum = |k: &str| -> f64 {
-        parts
-            .iter()
-            .filter_map(|p| p.sidecar.get(k)?.as_f64())
-            .sum()
-    };
-    let obj = sc.as_object_mut().expect("checked: a JSON object");
-    obj.insert(
-        "command".into(),
-        std::env::args().collect::<Vec<_>>().into(),
-    );
-    obj.insert("ids".into(), serde_json::json!([0, total]));
-    obj.insert("shard".into(), Value::Null);
-    obj.insert("scenes_ok".into(), (sum("scenes_ok") as u64).into());
-    obj.insert("scenes_not_ok".into(), (sum("scenes_not_ok") as u64).into());
-    obj.insert("wall_s".into(), sum("wall_s").into());
-    obj.insert(
-        "scenes_per_s".into(),
-        (n as f64 / sum("wall_s").max(1e-9)).into(),
-    );
-    obj.insert("fingerprint".into(), serde_json::to_string(&key0)?.into());
-    obj.insert(
-        "merged_from".into(),
-        parts
-            .iter()
-            .map(|p| p.path.display().to_string())
-            .collect::<Vec<_>>()
-            .into(),
-    );
-    for k in ["resumed_from_row", "wall_s_this_run", "stages_s"] {
-        obj.remove(k);
-    }
-    if let Some(r) = obj.get_mut("refine").and_then(|r| r.as_object_mut()) {
-        // The parts' levels added up (the same strides in every part).
-        let mut levels: Vec<(u64, u64)> = vec![];
-        for p in &parts {
-            let ls = p.sidecar["refine"]["levels"]
-                .as_array()
-                .cloned()
-                .unwrap_or_default();
-            for (k, l) in ls.iter().enumerate() {
-                let (stride, scenes) = (
-                    l["stride"].as_u64().unwrap_or(0),
-                    l["scenes"].as_u64().unwrap_or(0),
-                );
-                match levels.get_mut(k) {
-                    Some(e) => e.1 += scenes,
-                    None => levels.push((stride, scenes)),
-                }
-            }
-        }
-        r.insert(
-            "levels".into(),
-            levels
-                .iter()
-                .map(|(s, n)| serde_json::json!({"stride": s, "scenes": n}))
-                .collect::<Vec<_>>()
-                .into(),
-        );
-        r.insert("scenes_computed".into(), n.into());
-        r.insert("fraction_computed".into(), (n as f64 / total as f64).into());
-        r.remove("region_first_axis");
-    }
     write_atomic(
         &super::sidecar::path(out),
-        (serde_json::to_string_pretty(&sc)? + "\n").as_bytes(),
+        super::sidecar::text(&merged_sidecar(&parts, &key0, total, n))?.as_bytes(),
     )?;
     super::publish::publish(&tmp, out)?;
     Ok(n)
@@ -362,4 +285,43 @@ fn copy_rows(parts: &[Part], tmp: &Path) -> Result<u64> {
         .and_then(|_| w.get_ref().sync_all())
         .with_context(|| format!("cannot write {}", tmp.display()))?;
     Ok(n)
+}
+
+/// The merged table's sidecar: the first part's, with the parts' counts and
+/// times added up, the whole id range, no shard, the unsharded run's
+/// fingerprint, and a refinement's levels summed over the parts.
+fn merged_sidecar(parts: &[Part], key: &Fingerprint, total: u64, n: u64) -> Sidecar {
+    let mut sc = parts[0].sidecar.clone();
+    let sum = |f: fn(&Sidecar) -> f64| parts.iter().map(|p| f(&p.sidecar)).sum::<f64>();
+    let wall_s = sum(|s| s.wall_s);
+    sc.command = std::env::args().collect();
+    sc.ids = [0, total];
+    sc.shard = None;
+    sc.scenes_ok = parts.iter().map(|p| p.sidecar.scenes_ok).sum();
+    sc.scenes_not_ok = parts.iter().map(|p| p.sidecar.scenes_not_ok).sum();
+    sc.wall_s = wall_s;
+    sc.scenes_per_s = n as f64 / wall_s.max(1e-9);
+    sc.fingerprint = key.encode();
+    sc.merged_from = Some(parts.iter().map(|p| p.path.display().to_string()).collect());
+    sc.resumed_from_row = None;
+    sc.wall_s_this_run = None;
+    sc.stages_s = None;
+    if let Some(r) = &mut sc.refine {
+        // The parts' levels added up (the same strides in every part).
+        let mut levels: Vec<Level> = vec![];
+        for p in parts {
+            let ls = p.sidecar.refine.as_ref().map_or(&[][..], |r| &r.levels[..]);
+            for (k, l) in ls.iter().enumerate() {
+                match levels.get_mut(k) {
+                    Some(e) => e.scenes += l.scenes,
+                    None => levels.push(*l),
+                }
+            }
+        }
+        r.levels = levels;
+        r.scenes_computed = n;
+        r.fraction_computed = n as f64 / total as f64;
+        r.region_first_axis = None;
+    }
+    sc
 }

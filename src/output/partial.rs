@@ -170,7 +170,11 @@ impl Partial {
         }
         if resume && out.exists() {
             let sidecar = super::sidecar::path(out);
-            return match super::sidecar::fingerprint(&sidecar) {
+            let recorded = super::sidecar::read(out)
+                .ok()
+                .flatten()
+                .map(|s| s.fingerprint);
+            return match recorded {
                 Some(f) if f == fingerprint => Ok(Opened::AlreadyComplete),
                 found => Err(mismatch(
                     out,

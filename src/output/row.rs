@@ -228,6 +228,24 @@ pub enum Cell {
     Null,
 }
 
+impl Cell {
+    /// A field of this crate's CSV text read back as a column of type `t`
+    /// types it: an empty field is `Null`; a number that does not parse is
+    /// kept as text (it then equals no number).
+    pub fn parse(text: &str, t: ColType) -> Cell {
+        match t {
+            _ if text.is_empty() => Cell::Null,
+            ColType::Int => text
+                .parse()
+                .map_or_else(|_| Cell::Text(text.to_string()), Cell::Int),
+            ColType::Num => text
+                .parse()
+                .map_or_else(|_| Cell::Text(text.to_string()), Cell::Num),
+            ColType::Text | ColType::Status => Cell::Text(text.to_string()),
+        }
+    }
+}
+
 impl From<Field<'_>> for Cell {
     fn from(f: Field<'_>) -> Cell {
         match f {

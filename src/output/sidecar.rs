@@ -1,9 +1,14 @@
-//! `FILE.csv.json`: how a CSV was made — the resolved sweep, crate version,
-//! git revision, backend and adapter, solver settings, wall time, scenes/s.
+//! `FILE.json` beside every table: how it was made (the resolved sweep,
+//! crate version, git revision, backend and adapter, solver settings, wall
+//! time, scenes/s), which ids it holds, and the fingerprint a resume or a
+//! merge must agree with. One struct, [`Sidecar`], written by `sweep` and
+//! `merge` and read by `merge`, `fill`, `plot`, `explore` and `--resume`.
 
 use std::path::{Path, PathBuf};
 
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
+
+use crate::error::InputError;
 
 pub fn path(csv: &Path) -> PathBuf {
     let mut s = csv.as_os_str().to_owned();
@@ -11,16 +16,19 @@ pub fn path(csv: &Path) -> PathBuf {
     PathBuf::from(s)
 }
 
-#[derive(Serialize)]
-pub struct Sidecar<'a, S: Serialize> {
-    pub tool: &'static str,
-    pub version: &'static str,
-    pub git_revision: &'static str,
+/// A table's sidecar. `S` is the sweep: the `Sweep` itself when written,
+/// its JSON when read (the fields a reader needs are read from it by
+/// name: `axes[k].name`, `axes[k].values`).
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct Sidecar<S = serde_json::Value> {
+    pub tool: String,
+    pub version: String,
+    pub git_revision: String,
     pub command: Vec<String>,
-    pub sweep_file: &'a str,
-    pub sweep: &'a S,
-    pub backend: &'a str,
-    pub adapter: &'a str,
+    pub sweep_file: String,
+    pub sweep: S,
+    pub backend: String,
+    pub adapter: String,
     pub solver: serde_json::Value,
     /// The scene ids in this file: [first, end).
     pub ids: [u64; 2],
@@ -29,19 +37,51 @@ pub struct Sidecar<'a, S: Serialize> {
     pub scenes_ok: u64,
     pub scenes_not_ok: u64,
     /// Wall time of every run that wrote this file (s): a resumed run adds
-    /// the earlier runs' time up to their last saved batch.
+    /// the earlier runs' time up to their last saved batch; a merge, its
+    /// parts' times.
     pub wall_s: f64,
     pub scenes_per_s: f64,
-    pub resumed_from_row: u64,
-    /// Wall time of this run alone (s).
-    pub wall_s_this_run: f64,
+    /// Rows an earlier run had written when this one resumed (not in a merge).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub resumed_from_row: Option<u64>,
+    /// Wall time of this run alone (s; not in a merge).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub wall_s_this_run: Option<f64>,
     /// Where this run's time went: thread-seconds per pipeline stage.
-    pub stages_s: serde_json::Value,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub stages_s: Option<serde_json::Value>,
     /// An adaptive refinement: the scenes each level computed.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub refine: Option<serde_json::Value>,
-    /// What a `--resume` must agree with: sweep, shard, solver flags, version.
-    pub fingerprint: &'a str,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub refine: Option<Refined>,
+    /// What a `--resume` must agree with: sweep, shard, solver flags,
+    /// version (`sweep::session::Fingerprint`).
+    pub fingerprint: String,
+    /// A merged table: its parts.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub merged_from: Option<Vec<String>>,
+}
+
+/// What a refined table's sidecar says of its refinement.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Refined {
+    pub column: String,
+    pub threshold: Option<f64>,
+    pub coarse_stride: u64,
+    /// The full grid's shape.
+    pub grid: Vec<u64>,
+    /// The first axis' indices a shard refined (not in a merge).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub region_first_axis: Option<[u64; 2]>,
+    pub levels: Vec<Level>,
+    pub scenes_computed: u64,
+    pub fraction_computed: f64,
+}
+
+/// One refinement level: its stride (grid steps) and the scenes it computed.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Level {
+    pub stride: u64,
+    pub scenes: u64,
 }
 
 pub const GIT_REVISION: &str = match option_env!("CRADLE_GIT_REV") {
@@ -54,9 +94,40 @@ pub fn text<S: Serialize>(s: &Sidecar<S>) -> anyhow::Result<String> {
     Ok(serde_json::to_string_pretty(s)? + "\n")
 }
 
-/// The fingerprint a sidecar records, if it can be read.
-pub fn fingerprint(sidecar: &Path) -> Option<String> {
-    let text = std::fs::read_to_string(sidecar).ok()?;
-    let v: serde_json::Value = serde_json::from_str(&text).ok()?;
-    Some(v.get("fingerprint")?.as_str()?.to_string())
+/// The sidecar of `table`: `Ok(None)` when it has none; an error naming
+/// the sidecar when it cannot be read or is not a cradle sidecar.
+pub fn read(table: &Path) -> Result<Option<Sidecar>, InputError> {
+    let sc = path(table);
+    let text = match std::fs::read_to_string(&sc) {
+        Ok(t) => t,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
+        Err(e) => {
+            return Err(InputError::Data {
+                path: sc,
+                what: format!("cannot be read ({e})"),
+            })
+        }
+    };
+    serde_json::from_str(&text)
+        .map(Some)
+        .map_err(|e| InputError::Data {
+            path: sc,
+            what: format!("not a cradle sidecar ({e})"),
+        })
+}
+
+impl Sidecar {
+    /// The sweep's axes as the sidecar records them: name and values.
+    pub fn axes(&self) -> Option<Vec<(String, crate::sweep::axis::Values)>> {
+        self.sweep["axes"]
+            .as_array()?
+            .iter()
+            .map(|a| {
+                Some((
+                    a["name"].as_str()?.to_string(),
+                    crate::sweep::axis::Values::from_json(&a["values"])?,
+                ))
+            })
+            .collect()
+    }
 }

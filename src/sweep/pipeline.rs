@@ -30,7 +30,7 @@ use crate::backend::{run_with_estimate, Backend, DeviceStats, Job};
 use crate::engine::Status;
 use crate::output::parquet_file::{Columns, Segment, SEGMENT_ROWS};
 use crate::output::partial::{Partial, TableFormat};
-use crate::output::row;
+use crate::output::row::{self, Cell};
 
 /// Rows the lanes may run ahead of the oldest unwritten batch. With ~330
 /// bytes a row (5 balls) that is ≤ 70 MB of formatted rows waiting for a
@@ -100,6 +100,17 @@ struct Done {
     ok: u64,
     rows: Rows,
     typed: Vec<SweepRow>,
+    /// The column a [`Hooks::column`] watches, typed, for each row.
+    picked: Vec<Picked>,
+}
+
+/// One row's value of a watched column (a refinement's column), typed as
+/// the table types it, and whether the row is `ok`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Picked {
+    pub id: u64,
+    pub value: Cell,
+    pub ok: bool,
 }
 
 /// At most `n` holders at a time (backend calls of a backend that limits them).
@@ -152,6 +163,7 @@ fn batch(
     format: &TableFormat,
     ids: Ids,
     (first, end): (u64, u64),
+    column: Option<usize>,
     st: &mut Stages,
 ) -> Result<Done> {
     let (mut t, mut t1) = (Instant::now(), Instant::now());
@@ -204,6 +216,28 @@ fn batch(
             Rows::Arrow(cols.finish()?)
         }
     };
+    let picked = match column {
+        Some(k) => (first..)
+            .zip(&outcomes)
+            .map(|(p, o)| {
+                let i = ids.at(p);
+                let axes = |f: &mut dyn FnMut(row::Field)| sweep.emit_axis_values(i, f);
+                let (mut at, mut value) = (0, Cell::Null);
+                row::emit_fields(i, axes, o, shape, &mut |field| {
+                    if at == k {
+                        value = Cell::from(field);
+                    }
+                    at += 1;
+                });
+                Picked {
+                    id: i,
+                    value,
+                    ok: o.status == Status::Ok,
+                }
+            })
+            .collect(),
+        None => vec![],
+    };
     // The outcomes are not needed past here: a row callback takes them.
     let typed = match opts.on_row {
         Some(_) => (first..)
@@ -222,23 +256,28 @@ fn batch(
         ok,
         rows,
         typed,
+        picked,
     })
 }
 
-/// Sees every CSV chunk a stream appends.
-pub type RowsHook<'a> = &'a (dyn Fn(&[u8]) + Sync);
+/// Sees the watched column of every batch of rows a stream appends.
+pub type ColumnHook<'a> = &'a (dyn Fn(&[Picked]) + Sync);
 
 /// What a stream does besides appending rows: `progress` gets the end
 /// position of the rows written so far; `save` is called every few seconds;
-/// `rows` (if any) sees every CSV chunk appended.
+/// `column` (if any): a column's index and what sees its values, typed, as
+/// the rows are appended.
 pub struct Hooks<'a> {
     pub progress: &'a (dyn Fn(u64) + Sync),
     pub save: &'a (dyn Fn(&Partial) -> Result<()> + Sync),
-    pub rows: Option<RowsHook<'a>>,
+    pub column: Option<(usize, ColumnHook<'a>)>,
 }
 
 /// Run the scenes at positions `lo .. hi` of `ids` and append their rows to
 /// `out` in order. Returns (ok rows, rows, the output, stage times).
+/// Long (~170 lines) on purpose: the writer thread and the lanes live in one
+/// `thread::scope` and share its locals (the channel, the counters, the
+/// gate); split, each part would take a dozen borrowed arguments.
 #[allow(clippy::too_many_arguments)]
 pub fn stream(
     sweep: &Sweep,
@@ -301,11 +340,7 @@ pub fn stream(
                 while let Some(d) = waiting.remove(&expect) {
                     let t = Instant::now();
                     let r = match (&d.rows, segment.as_mut()) {
-                        (Rows::Csv(bytes), _) => out.append(bytes).map(|_| {
-                            if let Some(f) = hooks.rows {
-                                f(bytes)
-                            }
-                        }),
+                        (Rows::Csv(bytes), _) => out.append(bytes),
                         (Rows::Arrow(b), Some(seg)) => seg.write(b, d.ok).and_then(|_| {
                             // Segments end at fixed ids: lo + k·SEGMENT_ROWS, and at hi.
                             let end = d.first + d.n;
@@ -325,6 +360,9 @@ pub fn stream(
                         return Err(e);
                     }
                     writing += t.elapsed().as_secs_f64();
+                    if let Some((_, f)) = hooks.column {
+                        f(&d.picked);
+                    }
                     if let Some(f) = &opts.on_row {
                         d.typed.iter().for_each(|r| f(r));
                     }
@@ -384,6 +422,7 @@ pub fn stream(
                         &format,
                         ids,
                         (first, (first + batch_size).min(hi)),
+                        hooks.column.map(|c| c.0),
                         &mut st,
                     );
                     let failed = r.is_err();

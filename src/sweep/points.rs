@@ -39,6 +39,65 @@ pub fn read(path: &Path, spec: &SceneSpec, base: &Scene) -> Result<Vec<Axis>, In
                 format!("a CSV table ({k:?})"),
             ),
         })?;
+    let (header, params) = header_params(path, &mut r)?;
+    let mut cols: Vec<Vec<Value>> = vec![vec![]; header.len()];
+    for rec in r.records() {
+        let rec = rec.map_err(|e| {
+            let line = e.position().map_or(0, |p| p.line());
+            invalid(
+                path,
+                line,
+                "row",
+                String::new(),
+                format!(
+                    "{} fields, one per column of the header ({e})",
+                    header.len()
+                ),
+            )
+        })?;
+        let line = rec.position().map_or(0, |p| p.line());
+        if cols[0].len() >= axis::MAX_AXIS_VALUES {
+            return Err(invalid(
+                path,
+                line,
+                "row",
+                format!("more than {} rows", axis::MAX_AXIS_VALUES),
+                format!("at most {} scenes", axis::MAX_AXIS_VALUES),
+            ));
+        }
+        let row = row_values(path, line, &rec, &header, &params)?;
+        check_row(path, line, spec, base, (&header, &params), &row)?;
+        for (c, v) in cols.iter_mut().zip(row) {
+            c.push(v);
+        }
+    }
+    if cols[0].is_empty() {
+        return Err(invalid(
+            path,
+            2,
+            "row",
+            "(none)".into(),
+            "at least one row after the header: one scene per row".into(),
+        ));
+    }
+    Ok(header
+        .into_iter()
+        .zip(params)
+        .zip(cols)
+        .map(|((name, param), values)| Axis {
+            name,
+            param,
+            values: Values::List(values),
+            line: None,
+        })
+        .collect())
+}
+
+/// The header's names and the params they parse to (each quantity once).
+fn header_params<R: std::io::Read>(
+    path: &Path,
+    r: &mut csv::Reader<R>,
+) -> Result<(Vec<String>, Vec<Param>), InputError> {
     let header: Vec<String> = r
         .headers()
         .map_err(|e| {
@@ -88,129 +147,103 @@ pub fn read(path: &Path, spec: &SceneSpec, base: &Scene) -> Result<Vec<Axis>, In
         }
         params.push(p);
     }
-    let mut cols: Vec<Vec<Value>> = vec![vec![]; header.len()];
-    for rec in r.records() {
-        let rec = rec.map_err(|e| {
-            let line = e.position().map_or(0, |p| p.line());
-            invalid(
-                path,
-                line,
-                "row",
-                String::new(),
-                format!(
-                    "{} fields, one per column of the header ({e})",
-                    header.len()
-                ),
-            )
-        })?;
-        let line = rec.position().map_or(0, |p| p.line());
-        if cols[0].len() >= axis::MAX_AXIS_VALUES {
-            return Err(invalid(
-                path,
-                line,
-                "row",
-                format!("more than {} rows", axis::MAX_AXIS_VALUES),
-                format!("at most {} scenes", axis::MAX_AXIS_VALUES),
-            ));
-        }
-        let mut row = Vec::with_capacity(header.len());
-        for (k, cell) in rec.iter().enumerate() {
-            let p = &params[k];
-            let v = if p.kind == Kind::Glue {
-                Value::Text(cell.to_string())
-            } else {
-                let x: f64 = cell
-                    .parse()
-                    .ok()
-                    .filter(|x: &f64| x.is_finite())
-                    .ok_or_else(|| {
-                        invalid(
-                            path,
-                            line,
-                            &header[k],
-                            format!("{cell:?}"),
-                            "a finite number".into(),
-                        )
-                    })?;
-                if p.kind == Kind::Integer && x.fract() != 0.0 {
-                    return Err(invalid(
+    Ok((header, params))
+}
+
+/// One row's values, each checked against its column's kind.
+fn row_values(
+    path: &Path,
+    line: u64,
+    rec: &csv::StringRecord,
+    header: &[String],
+    params: &[Param],
+) -> Result<Vec<Value>, InputError> {
+    let mut row = Vec::with_capacity(header.len());
+    for (k, cell) in rec.iter().enumerate() {
+        let p = &params[k];
+        let v = if p.kind == Kind::Glue {
+            Value::Text(cell.to_string())
+        } else {
+            let x: f64 = cell
+                .parse()
+                .ok()
+                .filter(|x: &f64| x.is_finite())
+                .ok_or_else(|| {
+                    invalid(
                         path,
                         line,
                         &header[k],
-                        cell.to_string(),
-                        "a whole number: this parameter is an integer".into(),
-                    ));
-                }
-                Value::Num(x)
-            };
-            row.push(v);
-        }
-        // The row must make a valid scene; name the column that breaks it
-        // (the first one that is invalid on its own), else all of them.
-        let mut s = spec.clone();
-        for (p, v) in params.iter().zip(&row) {
-            axis::apply(&mut s, base, p, v);
-        }
-        let n = s.balls.map_or(base.n, |b| b as usize);
-        for (k, p) in params.iter().enumerate() {
-            if let (Some(i), Some(lim)) = (p.index, p.index_limit(n)) {
-                if i >= lim {
-                    return Err(invalid(
-                        path,
-                        line,
-                        &header[k],
-                        format!("index {i}"),
-                        format!("an index in 0 ..= {} for {n} balls", lim - 1),
-                    ));
-                }
+                        format!("{cell:?}"),
+                        "a finite number".into(),
+                    )
+                })?;
+            if p.kind == Kind::Integer && x.fract() != 0.0 {
+                return Err(invalid(
+                    path,
+                    line,
+                    &header[k],
+                    cell.to_string(),
+                    "a whole number: this parameter is an integer".into(),
+                ));
+            }
+            Value::Num(x)
+        };
+        row.push(v);
+    }
+    Ok(row)
+}
+
+/// The row must make a valid scene; name the column that breaks it (the
+/// first one that is invalid on its own), else all of them.
+fn check_row(
+    path: &Path,
+    line: u64,
+    spec: &SceneSpec,
+    base: &Scene,
+    (header, params): (&[String], &[Param]),
+    row: &[Value],
+) -> Result<(), InputError> {
+    let mut s = spec.clone();
+    for (p, v) in params.iter().zip(row) {
+        axis::apply(&mut s, base, p, v);
+    }
+    let n = s.balls.map_or(base.n, |b| b as usize);
+    for (k, p) in params.iter().enumerate() {
+        if let (Some(i), Some(lim)) = (p.index, p.index_limit(n)) {
+            if i >= lim {
+                return Err(invalid(
+                    path,
+                    line,
+                    &header[k],
+                    format!("index {i}"),
+                    format!("an index in 0 ..= {} for {n} balls", lim - 1),
+                ));
             }
         }
-        if let Err(e) = s.validate() {
-            let alone = params.iter().zip(&row).position(|(p, v)| {
-                let mut one = spec.clone();
-                axis::apply(&mut one, base, p, v);
-                one.validate().is_err()
-            });
-            let (key, value) = match alone {
-                Some(k) => (header[k].clone(), row[k].to_string()),
-                None => (
-                    header.join(","),
-                    row.iter()
-                        .map(|v| v.to_string())
-                        .collect::<Vec<_>>()
-                        .join(","),
-                ),
-            };
-            return Err(invalid(
-                path,
-                line,
-                &key,
-                value,
-                format!("makes an invalid scene: {e}"),
-            ));
-        }
-        for (c, v) in cols.iter_mut().zip(row) {
-            c.push(v);
-        }
     }
-    if cols[0].is_empty() {
+    if let Err(e) = s.validate() {
+        let alone = params.iter().zip(row).position(|(p, v)| {
+            let mut one = spec.clone();
+            axis::apply(&mut one, base, p, v);
+            one.validate().is_err()
+        });
+        let (key, value) = match alone {
+            Some(k) => (header[k].clone(), row[k].to_string()),
+            None => (
+                header.join(","),
+                row.iter()
+                    .map(|v| v.to_string())
+                    .collect::<Vec<_>>()
+                    .join(","),
+            ),
+        };
         return Err(invalid(
             path,
-            2,
-            "row",
-            "(none)".into(),
-            "at least one row after the header: one scene per row".into(),
+            line,
+            &key,
+            value,
+            format!("makes an invalid scene: {e}"),
         ));
     }
-    Ok(header
-        .into_iter()
-        .zip(params)
-        .zip(cols)
-        .map(|((name, param), values)| Axis {
-            name,
-            param,
-            values: Values::List(values),
-            line: None,
-        })
-        .collect())
+    Ok(())
 }

@@ -41,7 +41,7 @@ pub fn run(sweep: &Sweep, opts: &Options, backend: &dyn Backend) -> Result<Summa
         &pipeline::Hooks {
             progress: &|rows_end| opts.progress(rows_end - lo, hi - lo),
             save: &|out| out.save_wall(wall_before + t0.elapsed().as_secs_f64()),
-            rows: None,
+            column: None,
         },
     )?;
     let wall_s = t0.elapsed().as_secs_f64();

@@ -8,6 +8,7 @@ use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 
 use anyhow::Result;
+use serde::{Deserialize, Serialize};
 
 use super::Sweep;
 use crate::backend::{Backend, Job};
@@ -126,6 +127,80 @@ impl Sweep {
     }
 }
 
+/// What a resumed run, and every part of a merge, must share with the run
+/// it continues: the sweep as resolved, the shard, the solver flags, the
+/// error estimate and the crate version. [`Fingerprint::encode`] writes it
+/// as compact JSON with the keys of every object in alphabetical order and
+/// each flag by its name (`null` when not given), e.g.
+/// `{"error_estimate":false,"overrides":{"method":null,"model":null,
+/// "precision":"f32","tolerance":null},"precision_default":"f64",
+/// "shard":[1,3],"sweep":{…},"version":"0.1.0"}` — the text the partial
+/// file's first line and the sidecar's `fingerprint` hold (docs/SPEC.md §8).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Fingerprint {
+    pub error_estimate: bool,
+    pub overrides: FlagNames,
+    /// The precision a scene without one runs in.
+    pub precision_default: String,
+    /// `--shard K/N` as [K, N].
+    pub shard: Option<(u64, u64)>,
+    /// The sweep as resolved (the sidecar's `sweep`).
+    pub sweep: serde_json::Value,
+    pub version: String,
+}
+
+/// The solver flags of a run, by name.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct FlagNames {
+    pub method: Option<String>,
+    pub model: Option<String>,
+    pub precision: Option<String>,
+    pub tolerance: Option<f64>,
+}
+
+impl Fingerprint {
+    pub fn of(
+        sweep: &Sweep,
+        shard: Option<(u64, u64)>,
+        o: &Overrides,
+        error_estimate: bool,
+    ) -> Result<Fingerprint> {
+        Ok(Fingerprint {
+            error_estimate,
+            overrides: FlagNames {
+                method: o.method.map(|m| m.name().to_string()),
+                model: o.model.map(|m| m.name().to_string()),
+                precision: o.precision.map(|p| p.name().to_string()),
+                tolerance: o.tolerance,
+            },
+            precision_default: "f64".into(),
+            shard,
+            sweep: serde_json::to_value(sweep)?,
+            version: env!("CARGO_PKG_VERSION").into(),
+        })
+    }
+
+    /// The encoding described above (serde_json's maps keep keys sorted).
+    pub fn encode(&self) -> String {
+        serde_json::to_value(self)
+            .and_then(|v| serde_json::to_string(&v))
+            .expect("a fingerprint is plain JSON")
+    }
+
+    /// A fingerprint's text read back; `None` if it is not one.
+    pub fn decode(text: &str) -> Option<Fingerprint> {
+        serde_json::from_str(text).ok()
+    }
+
+    /// The same without its shard: what every part of a merge shares.
+    pub fn without_shard(&self) -> Fingerprint {
+        Fingerprint {
+            shard: None,
+            ..self.clone()
+        }
+    }
+}
+
 /// What every run shares before its rows: the output locked and opened
 /// (or found complete), and the fingerprint.
 pub(super) struct Opening {
@@ -139,11 +214,8 @@ pub(super) fn open(sweep: &Sweep, opts: &Options, lo: u64, csv_partial: bool) ->
     // One writer per output, for the whole run, before anything is touched.
     let lock = OutputLock::acquire(&opts.out)?;
     // Everything a resumed run must share with the first, in one string.
-    let fingerprint = serde_json::to_string(&serde_json::json!({
-        "sweep": sweep, "shard": opts.shard, "overrides": format!("{:?}", opts.overrides),
-        "error_estimate": opts.error_estimate,
-        "precision_default": "f64", "version": env!("CARGO_PKG_VERSION"),
-    }))?;
+    let fingerprint =
+        Fingerprint::of(sweep, opts.shard, &opts.overrides, opts.error_estimate)?.encode();
     // Fail on a bad solver choice (e.g. f32 below its floor) before any output.
     sweep.job(lo.min(sweep.total.saturating_sub(1)), &opts.overrides)?;
     let mut header = Vec::new();
@@ -177,7 +249,7 @@ pub(super) struct Counts {
     pub resumed_from_row: u64,
     pub wall_s_this_run: f64,
     pub stages: serde_json::Value,
-    pub refine: Option<serde_json::Value>,
+    pub refine: Option<sidecar::Refined>,
 }
 
 /// Write the sidecar and publish the output.
@@ -191,14 +263,14 @@ pub(super) fn finish(
 ) -> Result<()> {
     let (lo, hi) = c.ids;
     let text = sidecar::text(&sidecar::Sidecar {
-        tool: "cradle",
-        version: env!("CARGO_PKG_VERSION"),
-        git_revision: sidecar::GIT_REVISION,
+        tool: "cradle".into(),
+        version: env!("CARGO_PKG_VERSION").into(),
+        git_revision: sidecar::GIT_REVISION.into(),
         command: opts.command.clone(),
-        sweep_file: &sweep.origin,
+        sweep_file: sweep.origin.clone(),
         sweep,
-        backend: backend.name(),
-        adapter: &backend.adapter(),
+        backend: backend.name().into(),
+        adapter: backend.adapter(),
         solver: serde_json::json!({
             "flags": {
                 "method": opts.overrides.method.map(|m| m.name()),
@@ -217,11 +289,12 @@ pub(super) fn finish(
         scenes_not_ok: c.done - c.ok,
         wall_s: c.wall_s,
         scenes_per_s: c.done as f64 / c.wall_s.max(1e-9),
-        resumed_from_row: c.resumed_from_row,
-        wall_s_this_run: c.wall_s_this_run,
-        stages_s: c.stages,
+        resumed_from_row: Some(c.resumed_from_row),
+        wall_s_this_run: Some(c.wall_s_this_run),
+        stages_s: Some(c.stages),
         refine: c.refine,
-        fingerprint,
+        fingerprint: fingerprint.to_string(),
+        merged_from: None,
     })?;
     out.finish((&sidecar::path(&opts.out), text.as_bytes()))
 }

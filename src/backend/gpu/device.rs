@@ -38,6 +38,9 @@ impl Gpu {
     /// read (the device never waits for the host), rounds per dispatch by
     /// time on hardware and by llvmpipe's loop limit on software. Returns
     /// the words and the state of every scene.
+    /// Long (~160 lines) on purpose: the buffers, the bind group and the
+    /// rounds in flight are one unit whose lifetimes tie together; split,
+    /// every part would take the same ten buffers.
     pub(super) fn integrate<R: Real + Pod>(
         &self,
         pipe: &wgpu::ComputePipeline,

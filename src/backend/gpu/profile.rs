@@ -27,7 +27,7 @@ const ROUND_S: (f64, f64) = (0.002, 0.016);
 /// pacing. A hardware GPU gets [`Profile::HARDWARE`], a software adapter
 /// [`Profile::SOFTWARE`]; `CRADLE_GPU_PROFILE=hardware|software` picks one
 /// (so the hardware path runs on lavapipe in tests and CI), and tests set
-/// their own with [`Gpu::with_profile`].
+/// their own with [`super::Gpu::with_profile`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Profile {
     /// Scenes per sweep batch (`Backend::batch_size`).

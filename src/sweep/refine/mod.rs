@@ -21,6 +21,11 @@ use std::collections::{BTreeSet, HashMap};
 
 use serde::Serialize;
 
+use crate::output::row::Cell;
+
+mod run;
+pub use run::run;
+
 /// The `[refine]` table.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct RefineSpec {
@@ -44,16 +49,21 @@ pub fn default_stride(dims: &[u64]) -> u64 {
     s
 }
 
-/// Whether the corner values `vals` disagree: as text, or (with a
-/// threshold) as numbers differing by more than it; a missing or unreadable
-/// number beside a readable one disagrees.
-pub fn disagree(vals: &[&str], threshold: Option<f64>) -> bool {
+/// Whether the corner values `vals` disagree: as values (categories,
+/// counts, statuses), or (with a threshold) as numbers differing by more
+/// than it; a missing or non-finite number beside a finite one disagrees.
+pub fn disagree(vals: &[Cell], threshold: Option<f64>) -> bool {
     match threshold {
         None => vals.iter().any(|v| *v != vals[0]),
         Some(t) => {
             let nums: Vec<Option<f64>> = vals
                 .iter()
-                .map(|v| v.parse::<f64>().ok().filter(|x| x.is_finite()))
+                .map(|v| match v {
+                    Cell::Num(x) => Some(*x),
+                    Cell::Int(x) => Some(*x as f64),
+                    Cell::Text(_) | Cell::Null => None,
+                })
+                .map(|x| x.filter(|x| x.is_finite()))
                 .collect();
             if nums.iter().all(Option::is_none) {
                 return false;
@@ -71,7 +81,7 @@ pub fn disagree(vals: &[&str], threshold: Option<f64>) -> bool {
 }
 
 /// A box of the grid: the first and last index on every axis.
-type Cell = Vec<(u64, u64)>;
+type GridBox = Vec<(u64, u64)>;
 
 /// The level-by-level plan of a refinement over a grid of `dims` values per
 /// axis (first axis slowest, as scene ids are).
@@ -82,7 +92,7 @@ pub struct Refiner {
     /// Half the current stride: where the next level splits.
     stride: u64,
     /// The current level's cells (to be checked once its points are known).
-    cells: Vec<Cell>,
+    cells: Vec<GridBox>,
     /// Every point computed so far.
     pub computed: BTreeSet<u64>,
     /// The part of the first axis refined: [first, last] index.
@@ -193,7 +203,7 @@ impl Refiner {
     /// next level's new scene ids, ascending, or `None` when done.
     pub fn next(
         &mut self,
-        value: &dyn Fn(u64) -> String,
+        value: &dyn Fn(u64) -> Cell,
         threshold: Option<f64>,
     ) -> Option<Vec<u64>> {
         if self.stride <= 1 {
@@ -212,9 +222,8 @@ impl Refiner {
             .iter()
             .map(|p| self.id(p))
             .collect();
-            let vals: Vec<String> = corners.iter().map(|&c| value(c)).collect();
-            let refs: Vec<&str> = vals.iter().map(String::as_str).collect();
-            if !disagree(&refs, threshold) {
+            let vals: Vec<Cell> = corners.iter().map(|&c| value(c)).collect();
+            if !disagree(&vals, threshold) {
                 continue;
             }
             // Split points and sub-intervals of each axis.
@@ -332,244 +341,9 @@ pub fn nearest(dims: &[u64], sites: &[u64]) -> Vec<u64> {
     site
 }
 
-/// Refinement levels' statistics for the sidecar.
-#[derive(Clone, Debug, Serialize)]
-pub struct LevelStats {
-    pub stride: u64,
-    pub scenes: u64,
-}
-
-/// The values computed so far, by scene id.
-pub type Values = HashMap<u64, String>;
-
-/// Run a refined sweep: level after level through the sweep pipeline, each
-/// level's rows appended to the partial file (a section in id order); the
-/// finished file interleaves the sections in id order. `--resume` reads the
-/// rows already there, replays the levels they make (the same ids, since
-/// each level follows from the values before it), and goes on from the
-/// first missing row.
-pub fn run(
-    sweep: &super::Sweep,
-    spec: &RefineSpec,
-    opts: &super::session::Options,
-    backend: &dyn crate::backend::Backend,
-) -> anyhow::Result<super::session::Summary> {
-    use super::pipeline::{self, Hooks, Ids};
-    use crate::error::InputError;
-    use std::io::BufRead;
-    use std::sync::Mutex;
-    use std::time::Instant;
-
-    let refuse = |flag: &str, why: &str| -> anyhow::Error {
-        InputError::Flag {
-            flag: flag.into(),
-            value: "with [refine]".into(),
-            allowed: why.into(),
-        }
-        .into()
-    };
-    // A shard refines a slab of whole coarse steps of the first axis, and
-    // one coarse step beyond it on each side, so that every point on its
-    // borders is computed exactly when the whole sweep would compute it; it
-    // keeps the rows of its own slab (a contiguous id range).
-    let dims = sweep.dims();
-    let coarse = Refiner::coarse_first_axis(&dims, spec.stride);
-    let steps0 = (coarse.len() - 1) as u64;
-    let per_id0: u64 = dims[1..].iter().product();
-    let ((lo, hi), region) = match opts.shard {
-        None => ((0, sweep.total), (0, dims[0] - 1)),
-        Some((k, n)) => {
-            if dims[0] < 2 {
-                return Err(refuse(
-                    "--shard",
-                    "a refined sweep is sharded along its first axis, which needs 2 or more values",
-                ));
-            }
-            let (c0, c1) = ((k - 1) * steps0 / n, k * steps0 / n);
-            let lo = coarse[c0 as usize] * per_id0;
-            let hi = if c1 == steps0 {
-                sweep.total
-            } else {
-                coarse[c1 as usize] * per_id0
-            };
-            let region = (
-                coarse[c0.saturating_sub(1) as usize],
-                coarse[(c1 + 1).min(steps0) as usize],
-            );
-            ((lo, hi), region)
-        }
-    };
-    let header = sweep.header();
-    let col = header
-        .iter()
-        .position(|h| *h == spec.column)
-        .expect("checked when the sweep was read");
-    // The partial file holds CSV rows (levels as sections) whatever the
-    // output's format; a Parquet output is made from them at the end.
-    let o = super::session::open(sweep, opts, lo, true)?;
-    let Some(mut out) = o.out else {
-        return Ok(super::session::Summary {
-            already_complete: true,
-            ..Default::default()
-        });
-    };
-    let values: Mutex<Values> = Mutex::new(HashMap::new());
-    // Ids of the rows whose status is ok (for the sidecar's counts).
-    let ok_ids: Mutex<BTreeSet<u64>> = Mutex::new(BTreeSet::new());
-    let status = 1 + sweep.axes.len();
-    // The column's text (and whether ok) of each CSV row in `bytes`.
-    let record = |bytes: &[u8]| {
-        let mut r = csv::ReaderBuilder::new()
-            .has_headers(false)
-            .from_reader(bytes);
-        let mut v = values.lock().unwrap_or_else(|e| e.into_inner());
-        let mut ok = ok_ids.lock().unwrap_or_else(|e| e.into_inner());
-        for rec in r.records().flatten() {
-            if let Some(id) = rec.get(0).and_then(|t| t.parse::<u64>().ok()) {
-                v.insert(id, rec.get(col).unwrap_or("").to_string());
-                if rec.get(status) == Some("ok") {
-                    ok.insert(id);
-                }
-            }
-        }
-    };
-    // Rows already in the partial file (a resumed run), in file order.
-    let mut earlier: Vec<(u64, Vec<u8>)> = vec![];
-    if out.rows_done > 0 {
-        let partial = crate::output::partial::partial_path(&opts.out);
-        let mut r = std::io::BufReader::new(std::fs::File::open(&partial)?);
-        let mut line = Vec::new();
-        r.read_until(b'\n', &mut line)?; // the header
-        loop {
-            line.clear();
-            if r.read_until(b'\n', &mut line)? == 0 || line.last() != Some(&b'\n') {
-                break;
-            }
-            let id = crate::output::row::line_id(&line).unwrap_or(u64::MAX);
-            earlier.push((id, line.clone()));
-        }
-    }
-    let (wall_before, resumed_from) = (out.wall_before, out.rows_done);
-    let mut refiner = Refiner::with_range(&dims, spec.stride, region);
-    let mut level = if lo < hi { refiner.start() } else { vec![] };
-    let mut stats: Vec<LevelStats> = vec![];
-    let mut sections = vec![];
-    let (mut ok_run, mut done_run, mut consumed) = (0u64, 0u64, 0usize);
-    let mut stages = serde_json::Value::Null;
-    let t0 = Instant::now();
-    loop {
-        // Rows of this level already written by an earlier run.
-        let have = (earlier.len() - consumed).min(level.len());
-        for (k, (id, line)) in earlier[consumed..consumed + have].iter().enumerate() {
-            if *id != level[k] {
-                return Err(InputError::Data {
-                    path: crate::output::partial::partial_path(&opts.out),
-                    what: format!(
-                        "cannot resume: row {} has id {id} where refinement level {} computes {}; run without --resume to start over",
-                        consumed + k + 1,
-                        stats.len(),
-                        level[k]
-                    ),
-                }
-                .into());
-            }
-            record(line);
-        }
-        consumed += have;
-        let done_before = (resumed_from + done_run) as usize;
-        let total = done_before as u64 + (level.len() - have) as u64;
-        opts.progress(done_before as u64, total);
-        if have < level.len() {
-            let (ok, done, o2, st) = pipeline::stream(
-                sweep,
-                opts,
-                backend,
-                Ids::List(&level),
-                (have as u64, level.len() as u64),
-                out,
-                &Hooks {
-                    progress: &|end| opts.progress(done_before as u64 + end - have as u64, total),
-                    save: &|out| out.save_wall(wall_before + t0.elapsed().as_secs_f64()),
-                    rows: Some(&record),
-                },
-            )?;
-            out = o2;
-            ok_run += ok;
-            done_run += done;
-            stages = st.json(t0.elapsed().as_secs_f64());
-        }
-        stats.push(LevelStats {
-            stride: refiner.stride(),
-            scenes: level.len() as u64,
-        });
-        sections.push(level.len() as u64);
-        let v = values.lock().unwrap_or_else(|e| e.into_inner());
-        let next = refiner.next(
-            &|id| v.get(&id).cloned().unwrap_or_default(),
-            spec.threshold,
-        );
-        drop(v);
-        match next {
-            Some(l) => level = l,
-            None => break,
-        }
-    }
-    let computed: u64 = sections.iter().sum();
-    out.sections = sections;
-    if opts.shard.is_some() {
-        out.keep = Some((lo, hi));
-    }
-    if opts.parquet {
-        out.to_parquet = Some((sweep.arrow_schema(), sweep.column_types()));
-    }
-    // What the finished file holds: this shard's rows, and how many are ok.
-    let rows = values
-        .lock()
-        .unwrap_or_else(|e| e.into_inner())
-        .keys()
-        .filter(|id| (lo..hi).contains(*id))
-        .count() as u64;
-    let ok_rows = ok_ids
-        .lock()
-        .unwrap_or_else(|e| e.into_inner())
-        .range(lo..hi)
-        .count() as u64;
-    let wall_s = t0.elapsed().as_secs_f64();
-    let refine = serde_json::json!({
-        "column": spec.column,
-        "threshold": spec.threshold,
-        "coarse_stride": spec.stride,
-        "grid": dims,
-        "region_first_axis": [region.0, region.1],
-        "levels": stats,
-        "scenes_computed": computed,
-        "fraction_computed": computed as f64 / sweep.total as f64,
-    });
-    super::session::finish(
-        sweep,
-        opts,
-        backend,
-        &o.fingerprint,
-        out,
-        super::session::Counts {
-            ids: (lo, hi),
-            ok: ok_rows,
-            done: rows,
-            wall_s: wall_before + wall_s,
-            resumed_from_row: resumed_from,
-            wall_s_this_run: wall_s,
-            stages,
-            refine: Some(refine),
-        },
-    )?;
-    Ok(super::session::Summary {
-        scenes: done_run,
-        ok: ok_run,
-        wall_s,
-        already_complete: false,
-        backend: String::new(),
-    })
-}
+/// The values of the refined column computed so far, by scene id, typed
+/// as the table types the column.
+pub type Values = HashMap<u64, Cell>;
 
 #[cfg(test)]
 mod tests {
@@ -590,7 +364,7 @@ mod tests {
         loop {
             for &id in &level {
                 assert!(
-                    vals.insert(id, inside(id).to_string()).is_none(),
+                    vals.insert(id, Cell::Int(inside(id) as u64)).is_none(),
                     "computed twice"
                 );
             }
@@ -602,7 +376,7 @@ mod tests {
         let sites: Vec<u64> = vals.keys().copied().collect();
         let near = nearest(&dims, &sites);
         let wrong = (0..257 * 300)
-            .filter(|&id| vals[&near[id as usize]] != inside(id).to_string())
+            .filter(|&id| vals[&near[id as usize]] != Cell::Int(inside(id) as u64))
             .count();
         assert!(wrong <= 3, "{wrong} cells wrong");
         assert!(sites.len() < 257 * 300 / 8, "{} computed", sites.len());
@@ -629,12 +403,23 @@ mod tests {
     }
 
     #[test]
-    fn disagreement_by_text_or_threshold() {
-        assert!(!disagree(&["1", "1", "1"], None));
-        assert!(disagree(&["1", "2"], None));
-        assert!(!disagree(&["0.5", "0.52"], Some(0.05)));
-        assert!(disagree(&["0.5", "0.6"], Some(0.05)));
-        assert!(disagree(&["0.5", ""], Some(0.05)));
-        assert!(!disagree(&["", ""], Some(0.05)));
+    fn disagreement_by_value_or_threshold() {
+        use Cell::{Int, Null, Num, Text};
+        let text = |t: &str| Text(t.to_string());
+        assert!(!disagree(&[Int(1), Int(1), Int(1)], None));
+        assert!(disagree(&[Int(1), Int(2)], None));
+        assert!(disagree(&[text("ok"), text("step_cap")], None));
+        assert!(!disagree(&[Num(0.5), Num(0.52)], Some(0.05)));
+        assert!(disagree(&[Num(0.5), Num(0.6)], Some(0.05)));
+        assert!(disagree(&[Num(0.5), Null], Some(0.05)));
+        assert!(disagree(&[Num(0.5), Num(f64::NAN)], Some(0.05)));
+        assert!(!disagree(&[Null, Null], Some(0.05)));
+        assert!(disagree(&[Int(3), Int(5)], Some(1.0)));
+        // A row read back from CSV text types as the row it was written from.
+        use crate::output::row::ColType;
+        assert_eq!(Cell::parse("0.52", ColType::Num), Num(0.52));
+        assert_eq!(Cell::parse("", ColType::Num), Null);
+        assert_eq!(Cell::parse("7", ColType::Int), Int(7));
+        assert_eq!(Cell::parse("ok", ColType::Status), text("ok"));
     }
 }
