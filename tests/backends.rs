@@ -900,18 +900,7 @@ fn gpu_sweep_with_concurrent_calls_writes_the_cpu_bytes() {
     let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
     let sweep = Sweep::load(&root.join("examples/mass_gap.toml")).unwrap();
     let dir = tempfile::tempdir().unwrap();
-    let opts = Options {
-        out: dir.path().join("mass_gap.csv"),
-        resume: false,
-        shard: None,
-        overrides: Overrides::default(),
-        command: vec![],
-        error_estimate: false,
-        parquet: false,
-        on_progress: None,
-        on_row: None,
-        cancel: None,
-    };
+    let opts = Options::new(dir.path().join("mass_gap.csv"));
     rayon::ThreadPoolBuilder::new()
         .num_threads(6)
         .build()
@@ -966,18 +955,7 @@ fn gpu_sweep_builds_every_pipeline_before_its_first_scene() {
             (f64, true, 16, false)
         ]
     );
-    let opts = Options {
-        out: dir.path().join("pipes.csv"),
-        resume: false,
-        shard: None,
-        overrides: Overrides::default(),
-        command: vec![],
-        error_estimate: false,
-        parquet: false,
-        on_progress: None,
-        on_row: None,
-        cancel: None,
-    };
+    let opts = Options::new(dir.path().join("pipes.csv"));
     run(&sweep, &opts, &g).unwrap();
     assert_eq!(g.pipelines(), before, "compiled during the sweep");
     let rows = std::fs::read_to_string(&opts.out).unwrap();

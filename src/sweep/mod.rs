@@ -61,6 +61,22 @@ pub struct Axis {
     pub line: Option<usize>,
 }
 
+impl Axis {
+    /// The fewest and most of its numeric values as counts (a `balls`
+    /// axis: the shortest and longest chain it makes); `None` if it has none.
+    pub(crate) fn count_span(&self) -> Option<(usize, usize)> {
+        (0..self.values.len())
+            .filter_map(|i| match self.values.get(i) {
+                Value::Num(x) => Some(x as usize),
+                Value::Text(_) => None,
+            })
+            .fold(None, |span, n| match span {
+                None => Some((n, n)),
+                Some((lo, hi)) => Some((lo.min(n), hi.max(n))),
+            })
+    }
+}
+
 #[derive(Clone, Debug, Serialize)]
 pub struct Sweep {
     #[serde(skip)]
@@ -110,16 +126,12 @@ impl Sweep {
         let base_terms =
             crate::engine::Chain::from_scene(&self.base).map_or(true, |c| c.needs_terms());
         let terms_vary = varies(&["restitution", "air_drag", "length", "gravity"]);
-        let fewest_balls = match self.axes.iter().find(|a| a.param.name == "balls") {
-            Some(a) => (0..a.values.len())
-                .filter_map(|i| match a.values.get(i) {
-                    Value::Num(x) => Some(x as usize),
-                    Value::Text(_) => None,
-                })
-                .min()
-                .unwrap_or(self.base.n),
-            None => self.base.n,
-        };
+        let fewest_balls = self
+            .axes
+            .iter()
+            .find(|a| a.param.name == "balls")
+            .and_then(Axis::count_span)
+            .map_or(self.base.n, |span| span.0);
         // Glue joins balls into bodies: any count down to two may occur.
         let glued = self.base.glue.iter().any(|g| *g) || varies(&["glue"]);
         Ok(crate::backend::Needs {

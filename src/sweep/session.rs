@@ -67,6 +67,23 @@ pub struct Options {
 }
 
 impl Options {
+    /// A plain run into `out`: not resumed, unsharded, no flags, no error
+    /// estimate, CSV, no callbacks.
+    pub fn new(out: PathBuf) -> Options {
+        Options {
+            out,
+            resume: false,
+            shard: None,
+            overrides: Overrides::default(),
+            command: vec![],
+            error_estimate: false,
+            parquet: false,
+            on_progress: None,
+            on_row: None,
+            cancel: None,
+        }
+    }
+
     /// Tell the progress callback, if any.
     pub fn progress(&self, done: u64, total: u64) {
         if let Some(f) = &self.on_progress {

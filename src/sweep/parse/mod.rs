@@ -313,16 +313,10 @@ impl Ctx<'_> {
 
 /// Largest chain length over the sweep: the number of `v_i` columns.
 fn width(axes: &[(Option<usize>, Axis)], base: &Scene) -> usize {
-    let balls_axis = axes.iter().find(|(_, a)| a.param.name == "balls");
-    let num = |v: &Value| if let Value::Num(x) = v { *x } else { 0.0 };
-    match balls_axis {
-        Some((_, a)) => (0..a.values.len())
-            .map(|i| num(&a.values.get(i)) as usize)
-            .max()
-            .unwrap_or(base.n)
-            .max(base.n),
-        None => base.n,
-    }
+    axes.iter()
+        .find(|(_, a)| a.param.name == "balls")
+        .and_then(|(_, a)| a.count_span())
+        .map_or(base.n, |span| span.1.max(base.n))
 }
 
 impl Sweep {
