@@ -188,6 +188,10 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         } => {
             let cfg = RunRequest::from_name(&scene, &run_settings(trace, trace_dt, &solver))
                 .map_err(|e| e.into_anyhow())?;
+            if let Some(beads) = &cfg.beads {
+                let o = cfg.run_chain().map_err(|e| e.into_anyhow())?;
+                return print_chain(&cfg.name, beads, &o, format);
+            }
             let outcome = cfg.run().map_err(|e| e.into_anyhow())?;
             let chain = &cfg.chain;
             let mut out = std::io::stdout().lock();
@@ -217,4 +221,25 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             Ok(())
         }
     }
+}
+
+/// `cradle run` of a granular chain: its table, or its row as CSV.
+fn print_chain(
+    name: &str,
+    beads: &hertz_cradle::engine::granular::Beads,
+    o: &hertz_cradle::engine::granular::ChainOutcome,
+    format: Format,
+) -> anyhow::Result<()> {
+    use hertz_cradle::output::chain_row;
+    let mut out = std::io::stdout().lock();
+    match format {
+        Format::Table => write!(out, "{}", chain_row::table(name, beads, o))?,
+        Format::Csv => {
+            let mut w = csv::Writer::from_writer(&mut out);
+            w.write_record(chain_row::header(beads))?;
+            w.write_record(chain_row::fields(beads, o))?;
+            w.flush()?;
+        }
+    }
+    Ok(())
 }

@@ -33,11 +33,12 @@ use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 
 use crate::backend::BackendChoice;
+use crate::engine::granular::{self, Beads, ChainOutcome};
 use crate::engine::{simulate_chain, Chain, Model, Outcome, Overrides, Silent, Solver};
 use crate::error::{flag, InputError, Interrupted, Source};
 use crate::output::partial::COMPANIONS;
 use crate::output::{guard, TableKind};
-use crate::scene::{Method, Precision, Scene};
+use crate::scene::{Method, Precision, Scene, MAX_BALLS};
 use crate::sweep::session::{OnProgress, OnRow, Options, Summary};
 use crate::sweep::Sweep;
 
@@ -337,6 +338,11 @@ pub struct RunRequest {
     pub solver: Solver,
     /// Where the trace goes (a checked output path) and its row spacing (s).
     pub trace: Option<(PathBuf, f64)>,
+    /// A granular chain's compiled beads (docs/SPEC.md §9): the scene runs
+    /// with [`RunRequest::run_chain`]; `None` for a cradle.
+    pub beads: Option<Beads>,
+    /// The recorded beads of a chain's trace.
+    pub trace_beads: Vec<usize>,
 }
 
 impl RunRequest {
@@ -371,6 +377,9 @@ impl RunRequest {
         if let Some(why) = solver.model.unsupported(&chain) {
             return Err(flag("--model", solver.model.name(), &why).into());
         }
+        if scene.chain.is_some() {
+            return Self::new_chain(name, scene, chain, solver, settings);
+        }
         let trace = match &settings.trace {
             None => None,
             Some(path) => Some(Self::check_trace(
@@ -387,6 +396,134 @@ impl RunRequest {
             chain,
             solver,
             trace,
+            beads: None,
+            trace_beads: vec![],
+        })
+    }
+
+    /// A granular chain: its beads compiled, its trace checked against
+    /// `[record]` (the beads; `--trace-dt`, if given, must equal
+    /// `record.every`).
+    fn new_chain(
+        name: &str,
+        scene: Scene,
+        chain: Chain,
+        solver: Solver,
+        settings: &RunSettings,
+    ) -> Result<RunRequest, Error> {
+        if solver.model != Model::Hertz {
+            return Err(flag(
+                "--model",
+                solver.model.name(),
+                "hertz for a granular chain (the comparison models are for cradles)",
+            )
+            .into());
+        }
+        let beads = Beads::from_scene(&scene);
+        let record = scene.chain.as_ref().and_then(|c| c.record.clone());
+        let (mut trace, mut trace_beads) = (None, vec![]);
+        if let Some(path) = &settings.trace {
+            let every = match (&record, settings.trace_dt) {
+                (Some(r), Some(d)) if d != r.every => {
+                    return Err(flag(
+                        "--trace-dt",
+                        &format!("{d:e}"),
+                        &format!(
+                            "{name} sets [record] every = {:e}: give the spacing in one place",
+                            r.every
+                        ),
+                    )
+                    .into())
+                }
+                (Some(r), _) => r.every,
+                (None, Some(d)) if d.is_finite() && d > 0.0 => d,
+                (None, Some(d)) => {
+                    return Err(flag("--trace-dt", &d.to_string(), "a time > 0 (s)").into())
+                }
+                (None, None) => beads.time_scale() / 20.0,
+            };
+            trace_beads = match &record {
+                Some(r) => r.beads.clone(),
+                None if beads.n <= MAX_BALLS => (0..beads.n).collect(),
+                None => {
+                    return Err(flag(
+                        "--trace",
+                        &path.display().to_string(),
+                        &format!(
+                            "a chain of {} beads records the beads named in a [record] table (beads = [...], every = ...)",
+                            beads.n
+                        ),
+                    )
+                    .into())
+                }
+            };
+            let inputs: Vec<PathBuf> = Path::new(name)
+                .exists()
+                .then(|| name.into())
+                .into_iter()
+                .collect();
+            let path = guard::output("--trace", path, &inputs, &[])?;
+            let plan = granular::plan(&beads, &solver, Some(every));
+            // The run's end: its duration, else the cap (a bound).
+            let t_end = plan.duration.unwrap_or(plan.max_time);
+            let columns = 1 + 3 * trace_beads.len() + 2;
+            let bytes = (t_end / every + 2.0) * columns as f64 * TRACE_BYTES_PER_NUMBER;
+            if bytes.is_nan() || bytes > MAX_TRACE_BYTES {
+                return Err(flag(
+                    "--trace",
+                    &path.display().to_string(),
+                    &format!(
+                        "a record of {} beads every {every:e} s over up to {t_end:.4e} s: about {:.1} GB of trace (at most {:.0} GB); record fewer beads, a larger `every` or set [stop] duration",
+                        trace_beads.len(),
+                        bytes / 1e9,
+                        MAX_TRACE_BYTES / 1e9
+                    ),
+                )
+                .into());
+            }
+            trace = Some((path, every));
+        }
+        Ok(RunRequest {
+            name: name.to_string(),
+            scene,
+            chain,
+            solver,
+            trace,
+            beads: Some(beads),
+            trace_beads,
+        })
+    }
+
+    /// Run a granular chain (a scene with [`RunRequest::beads`]), writing
+    /// its trace if one was asked for.
+    pub fn run_chain(&self) -> Result<ChainOutcome, Error> {
+        use anyhow::Context;
+        let Some(beads) = &self.beads else {
+            return Err(flag(
+                "scene",
+                &self.name,
+                "a granular chain (this is a cradle: use run)",
+            )
+            .into());
+        };
+        let every = self.trace.as_ref().map(|t| t.1);
+        let plan = granular::plan(beads, &self.solver, every);
+        Ok(match &self.trace {
+            None => granular::run(beads, &plan, &mut granular::NoRows),
+            Some((path, _)) => {
+                let file = std::fs::File::create(path)
+                    .with_context(|| format!("cannot create trace file {}", path.display()))?;
+                let mut tw = crate::output::trace::ChainTraceWriter::new(
+                    std::io::BufWriter::new(file),
+                    beads,
+                    self.trace_beads.clone(),
+                )
+                .with_context(|| format!("writing {}", path.display()))?;
+                let o = granular::run(beads, &plan, &mut tw);
+                tw.finish()
+                    .with_context(|| format!("writing {}", path.display()))?;
+                o
+            }
         })
     }
 
@@ -439,9 +576,18 @@ impl RunRequest {
         Ok((path, every))
     }
 
-    /// Run the scene, writing its trace if one was asked for.
+    /// Run the scene, writing its trace if one was asked for (a cradle; a
+    /// granular chain runs with [`RunRequest::run_chain`]).
     pub fn run(&self) -> Result<Outcome, Error> {
         use anyhow::Context;
+        if self.beads.is_some() {
+            return Err(flag(
+                "scene",
+                &self.name,
+                "a cradle (this is a granular chain, docs/SPEC.md §9: use run_chain)",
+            )
+            .into());
+        }
         let (chain, solver) = (&self.chain, &self.solver);
         Ok(match &self.trace {
             None => simulate_chain(chain, solver, &mut Silent),

@@ -200,7 +200,7 @@ fn invalid_values_name_file_line_key_value_and_range() {
             "balls = 1\nvelocity = [1]\n",
             "s.toml:1",
             "`balls` = 1",
-            "2 ..= 64",
+            "2 ..= 10000",
         ),
         (
             "balls = 3\nvelocity = [1, 0, 0]\n[solver]\nprecision = \"f16\"\n",
@@ -460,5 +460,90 @@ fn gpu_sweep_writes_the_cpu_bytes_with_either_profile() {
     assert!(
         err.contains("allowed values are hardware and software"),
         "{err}"
+    );
+}
+
+#[test]
+fn a_granular_chain_runs_with_its_probes_walls_and_record() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = write(
+        &dir,
+        "chain.toml",
+        "balls = 300\nradius = 0.005\n[walls]\nright = true\n[launch]\nballs = 1\nvelocity = 0.1\n\
+         [probes]\nbeads = [50, 250]\n[record]\nbeads = [0, 150, 299]\nevery = 1e-4\n",
+    );
+    let out = success(&["run", &scene, "--format", "csv"]);
+    let mut r = csv::Reader::from_reader(out.as_slice());
+    let h: Vec<String> = r.headers().unwrap().iter().map(String::from).collect();
+    for col in [
+        "status",
+        "arrival_50",
+        "peak_v_250",
+        "peak_f_250",
+        "v_50",
+        "v_250",
+        "pulse_speed",
+        "wall_right_peak_force",
+        "energy_transmitted",
+        "fragments",
+    ] {
+        assert!(h.contains(&col.to_string()), "{col} missing from {h:?}");
+    }
+    // Above 64 beads, only the probes' final velocities are columns.
+    assert!(!h.contains(&"v_51".to_string()) && h.len() < 40, "{h:?}");
+    let row = r.records().next().unwrap().unwrap();
+    assert_eq!(&row[0], "ok");
+    let col = |name: &str| {
+        row[h.iter().position(|c| c == name).unwrap()]
+            .parse::<f64>()
+            .unwrap()
+    };
+    // The pulse reached the wall, which pushed back.
+    assert!(col("wall_right_peak_force") > 1.0);
+    assert!(col("arrival_250") > col("arrival_50"));
+
+    let trace = dir.path().join("t.csv");
+    let t = trace.to_str().unwrap();
+    success(&["run", &scene, "--trace", t]);
+    let mut r = csv::Reader::from_path(&trace).unwrap();
+    assert_eq!(
+        r.headers().unwrap().iter().collect::<Vec<_>>(),
+        [
+            "t",
+            "x_0",
+            "x_150",
+            "x_299",
+            "v_0",
+            "v_150",
+            "v_299",
+            "f_0",
+            "f_150",
+            "f_wall_right"
+        ]
+    );
+    let times: Vec<f64> = r
+        .records()
+        .map(|x| x.unwrap()[0].parse().unwrap())
+        .collect();
+    for (i, t) in times[..times.len() - 1].iter().enumerate() {
+        assert!((t - i as f64 * 1e-4).abs() < 1e-15, "row {i} at {t}");
+    }
+    // --trace-dt must agree with [record] every; a sweep refuses a chain.
+    let e = bad_input(&["run", &scene, "--trace", t, "--trace-dt", "1e-5"]);
+    assert!(e.contains("--trace-dt") && e.contains("every"), "{e}");
+    let sweep = write(
+        &dir,
+        "s.toml",
+        "scene = \"chain.toml\"\n[[axis]]\nparam = \"gap\"\nvalues = [0.0]\n",
+    );
+    let e = bad_input(&[
+        "sweep",
+        &sweep,
+        "--out",
+        dir.path().join("o.csv").to_str().unwrap(),
+    ]);
+    assert!(
+        e.contains("granular chains") && e.contains("cradle run"),
+        "{e}"
     );
 }

@@ -881,3 +881,6 @@ mod models {
         assert_eq!(o.status, Status::Invalid);
     }
 }
+
+#[path = "engine/chains.rs"]
+mod chains;

@@ -3,6 +3,7 @@
 
 pub mod chain;
 pub mod contact;
+pub mod granular;
 pub mod integrate;
 pub mod models;
 pub mod outcome;

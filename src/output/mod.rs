@@ -1,5 +1,6 @@
 //! Writers: outcome rows (CSV, Parquet and tables) and trajectories.
 
+pub mod chain_row;
 pub mod failpoint;
 pub mod fill;
 pub mod guard;

@@ -7,6 +7,7 @@
 
 use std::io::Write;
 
+use crate::engine::granular::{step::State, Beads, Rows};
 use crate::engine::{Chain, Observer};
 
 /// The trace row spacing when none is given (s): 400 rows per swing of a
@@ -105,5 +106,77 @@ impl<W: Write> Observer for TraceWriter<W> {
             self.next_row = 1;
         }
         self.last = Some((t, x.to_vec(), v.to_vec()));
+    }
+}
+
+/// A granular chain's trace (docs/SPEC.md §9): `t`, then `x_i`, `v_i` of
+/// the recorded beads, `f_i` (the force of contact i, beads i and i+1) for
+/// each recorded bead but the last of the chain, and `f_wall_left`,
+/// `f_wall_right` for the walls there are. Rows fall on steps (the step
+/// divides the spacing), at t = 0, every, 2·every, … and the end.
+pub struct ChainTraceWriter<W: Write> {
+    out: W,
+    beads: Vec<usize>,
+    pub error: Option<std::io::Error>,
+}
+
+impl<W: Write> ChainTraceWriter<W> {
+    pub fn new(mut out: W, b: &Beads, beads: Vec<usize>) -> std::io::Result<Self> {
+        let mut h: Vec<String> = vec!["t".into()];
+        h.extend(beads.iter().map(|i| format!("x_{i}")));
+        h.extend(beads.iter().map(|i| format!("v_{i}")));
+        h.extend(
+            beads
+                .iter()
+                .filter(|&&i| i + 1 < b.n)
+                .map(|i| format!("f_{i}")),
+        );
+        if b.left_wall {
+            h.push("f_wall_left".into());
+        }
+        if b.right_wall {
+            h.push("f_wall_right".into());
+        }
+        writeln!(out, "{}", h.join(","))?;
+        Ok(ChainTraceWriter {
+            out,
+            beads,
+            error: None,
+        })
+    }
+
+    pub fn finish(mut self) -> std::io::Result<()> {
+        if let Some(e) = self.error.take() {
+            return Err(e);
+        }
+        self.out.flush()
+    }
+}
+
+impl<W: Write> Rows for ChainTraceWriter<W> {
+    fn row(&mut self, t: f64, b: &Beads, st: &State) {
+        if self.error.is_some() {
+            return;
+        }
+        let x = st.positions();
+        let mut line = format!("{t:e}");
+        for &i in &self.beads {
+            line.push_str(&format!(",{:e}", x[i]));
+        }
+        for &i in &self.beads {
+            line.push_str(&format!(",{:e}", st.v[i]));
+        }
+        for &i in self.beads.iter().filter(|&&i| i + 1 < b.n) {
+            line.push_str(&format!(",{:e}", st.force(b, i + 1)));
+        }
+        if b.left_wall {
+            line.push_str(&format!(",{:e}", st.force(b, 0)));
+        }
+        if b.right_wall {
+            line.push_str(&format!(",{:e}", st.force(b, b.n)));
+        }
+        if let Err(e) = writeln!(self.out, "{line}") {
+            self.error = Some(e);
+        }
     }
 }

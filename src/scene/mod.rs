@@ -4,10 +4,14 @@
 //! one value per ball) → [`crate::engine::Chain`] (rigid bodies) → backend.
 
 pub mod builtin;
+mod granular;
 pub(crate) mod spec;
 mod validate;
 
-pub use spec::{DampingSpec, LaunchSpec, PendulumSpec, PerBall, SceneSpec, SolverSpec, StopSpec};
+pub use spec::{
+    DampingSpec, ImpuritySpec, LaunchSpec, PatternSpec, PendulumSpec, PerBall, ProbesSpec,
+    PulseSpec, RecordSpec, SceneSpec, SolverSpec, StopSpec, TaperSpec, WallsSpec,
+};
 
 use std::path::Path;
 
@@ -23,8 +27,14 @@ pub const DEFAULT_YOUNG: f64 = 200e9;
 pub const DEFAULT_POISSON: f64 = 0.3;
 /// Standard gravity (m/s²), used for `[launch] height` without a pendulum.
 pub const STANDARD_GRAVITY: f64 = 9.80665;
-/// Chains longer than this are refused (the GPU keeps a chain in registers).
+/// Cradles (the rigid-body engine: glue, pendulum, damping, exact onsets)
+/// have at most this many balls (the GPU keeps a cradle in registers).
+/// Longer scenes are granular chains ([`ChainSetup`]).
 pub const MAX_BALLS: usize = 64;
+/// Longest granular chain (beads).
+pub const MAX_CHAIN: usize = 10_000;
+/// A taper may not shrink a bead below this fraction of the first bead's radius.
+pub const MIN_TAPER_FRACTION: f64 = 1e-6;
 
 /// Integration methods (`--method`, `[solver] method`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
@@ -134,6 +144,46 @@ pub struct SolverChoice {
     pub precision: Option<Precision>,
 }
 
+/// A fixed flat wall's material (Hertz sphere–flat contact, R* = the bead's radius).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Wall {
+    pub young_modulus: f64,
+    pub poisson_ratio: f64,
+}
+
+/// A half-sine force F·sin(π·t/τ) on one bead for 0 ≤ t ≤ τ.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Pulse {
+    pub bead: usize,
+    /// Peak force F (N).
+    pub force: f64,
+    /// Duration τ (s).
+    pub duration: f64,
+}
+
+/// Bead histories for `cradle run --trace`.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Record {
+    pub beads: Vec<usize>,
+    /// Row spacing (s).
+    pub every: f64,
+}
+
+/// What makes a scene a granular chain (docs/SPEC.md §9): walls, a static
+/// precompression, a force pulse, recorded and probed beads. Present when
+/// the scene has any of `[walls]`, `[pulse]`, `[record]`, `[probes]`,
+/// `[pattern]`, `[taper]`, `[impurity]`, or more than [`MAX_BALLS`] balls.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct ChainSetup {
+    pub left_wall: Option<Wall>,
+    pub right_wall: Option<Wall>,
+    /// Static force F0 (N) between the two walls; 0: none.
+    pub precompression: f64,
+    pub pulse: Option<Pulse>,
+    pub record: Option<Record>,
+    pub probes: Vec<usize>,
+}
+
 /// A checked scene in SI units, one value per ball (gaps and glue: per contact).
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct Scene {
@@ -154,6 +204,9 @@ pub struct Scene {
     pub duration: Option<f64>,
     pub max_steps: Option<u64>,
     pub solver: SolverChoice,
+    /// A granular chain's walls, pulse, record and probes; `None` for a cradle.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub chain: Option<ChainSetup>,
 }
 
 impl Scene {

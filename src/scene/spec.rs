@@ -125,6 +125,77 @@ pub struct SolverSpec {
     pub precision: Option<String>,
 }
 
+/// `[walls]`: fixed flat walls at the ends of a chain and the static force
+/// that squeezes it (docs/SPEC.md §9).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct WallsSpec {
+    pub left: Option<bool>,
+    pub right: Option<bool>,
+    pub young_modulus: Option<f64>,
+    pub poisson_ratio: Option<f64>,
+    pub precompression: Option<f64>,
+}
+
+/// `[pulse]`: a half-sine force (N) on one bead for `duration` (s).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PulseSpec {
+    pub bead: Option<i64>,
+    pub force: Option<f64>,
+    pub duration: Option<f64>,
+}
+
+/// `[record]`: the beads whose histories `cradle run --trace` writes, and
+/// the spacing of its rows (s).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RecordSpec {
+    pub beads: Option<Vec<i64>>,
+    pub every: Option<f64>,
+}
+
+/// `[probes]`: the beads whose pulse arrival, peak velocity and peak force
+/// are outcome columns.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ProbesSpec {
+    pub beads: Option<Vec<i64>>,
+}
+
+/// `[pattern]`: per-bead values repeated along the chain (a dimer:
+/// `radius = [0.005, 0.0035]`).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PatternSpec {
+    pub radius: Option<Vec<f64>>,
+    pub density: Option<Vec<f64>>,
+    pub mass: Option<Vec<f64>>,
+    pub young_modulus: Option<Vec<f64>>,
+    pub poisson_ratio: Option<Vec<f64>>,
+}
+
+/// `[taper]`: radii shrinking along the chain, by a ratio
+/// (radius_{i+1} = (1−q)·radius_i) or linearly (radius_i = radius_0·(1 − q·i)).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TaperSpec {
+    pub ratio: Option<f64>,
+    pub kind: Option<String>,
+}
+
+/// `[impurity]`: beads with their own radius, mass (or density) and material.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ImpuritySpec {
+    pub beads: Option<Vec<i64>>,
+    pub radius: Option<f64>,
+    pub density: Option<f64>,
+    pub mass: Option<f64>,
+    pub young_modulus: Option<f64>,
+    pub poisson_ratio: Option<f64>,
+}
+
 /// The scene table exactly as serde reads it, with spans.
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -144,6 +215,13 @@ pub(crate) struct RawScene {
     damping: Option<Spanned<DampingSpec>>,
     stop: Option<Spanned<StopSpec>>,
     solver: Option<Spanned<SolverSpec>>,
+    walls: Option<Spanned<WallsSpec>>,
+    pulse: Option<Spanned<PulseSpec>>,
+    record: Option<Spanned<RecordSpec>>,
+    probes: Option<Spanned<ProbesSpec>>,
+    pattern: Option<Spanned<PatternSpec>>,
+    taper: Option<Spanned<TaperSpec>>,
+    impurity: Option<Spanned<ImpuritySpec>>,
 }
 
 /// A scene as written: every key optional until [`SceneSpec::validate`].
@@ -166,6 +244,20 @@ pub struct SceneSpec {
     pub damping: Option<DampingSpec>,
     pub stop: Option<StopSpec>,
     pub solver: Option<SolverSpec>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub walls: Option<WallsSpec>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub pulse: Option<PulseSpec>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub record: Option<RecordSpec>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub probes: Option<ProbesSpec>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub pattern: Option<PatternSpec>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub taper: Option<TaperSpec>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub impurity: Option<ImpuritySpec>,
     /// Where the scene came from (a path, or `built-in scene NAME`).
     #[serde(skip)]
     pub origin: String,
@@ -212,6 +304,13 @@ impl SceneSpec {
             damping: take(src, &mut l, "damping", r.damping),
             stop: take(src, &mut l, "stop", r.stop),
             solver: take(src, &mut l, "solver", r.solver),
+            walls: take(src, &mut l, "walls", r.walls),
+            pulse: take(src, &mut l, "pulse", r.pulse),
+            record: take(src, &mut l, "record", r.record),
+            probes: take(src, &mut l, "probes", r.probes),
+            pattern: take(src, &mut l, "pattern", r.pattern),
+            taper: take(src, &mut l, "taper", r.taper),
+            impurity: take(src, &mut l, "impurity", r.impurity),
             origin: src.name.clone(),
             lines: l,
         })

@@ -6,14 +6,19 @@ use std::fmt::Display;
 
 use super::*;
 
-const POS: &str = "must be a finite number > 0";
+pub(super) const POS: &str = "must be a finite number > 0";
 
-struct Check<'a> {
-    spec: &'a SceneSpec,
+pub(super) struct Check<'a> {
+    pub(super) spec: &'a SceneSpec,
 }
 
 impl Check<'_> {
-    fn err(&self, key: &str, value: impl Display, allowed: impl Into<String>) -> InputError {
+    pub(super) fn err(
+        &self,
+        key: &str,
+        value: impl Display,
+        allowed: impl Into<String>,
+    ) -> InputError {
         InputError::Invalid {
             origin: self.spec.origin.clone(),
             line: self.spec.line_of(key),
@@ -23,7 +28,7 @@ impl Check<'_> {
         }
     }
 
-    fn num(
+    pub(super) fn num(
         &self,
         key: &str,
         x: f64,
@@ -37,7 +42,7 @@ impl Check<'_> {
         }
     }
 
-    fn opt(
+    pub(super) fn opt(
         &self,
         key: &str,
         x: Option<f64>,
@@ -49,7 +54,7 @@ impl Check<'_> {
 
     /// A per-ball (or per-contact) array of `n` values, each passing `ok`.
     #[allow(clippy::too_many_arguments)]
-    fn per(
+    pub(super) fn per(
         &self,
         key: &str,
         v: Option<&PerBall>,
@@ -90,10 +95,14 @@ impl Check<'_> {
     }
 }
 
-fn positive(x: f64) -> bool {
+pub(super) fn positive(x: f64) -> bool {
     x > 0.0
 }
-fn non_negative(x: f64) -> bool {
+pub(super) fn poisson(x: f64) -> bool {
+    (0.0..0.5).contains(&x)
+}
+pub(super) const POISSON: &str = "must be in [0, 0.5)";
+pub(super) fn non_negative(x: f64) -> bool {
     x >= 0.0
 }
 fn any(_: f64) -> bool {
@@ -105,6 +114,10 @@ impl SceneSpec {
     pub fn validate(&self) -> Result<Scene, InputError> {
         let c = Check { spec: self };
         let n = self.balls()?;
+        let chain = self.is_chain(n);
+        if chain {
+            self.cradle_only_keys(&c, n)?;
+        }
         let (radius, mass, young_modulus, poisson_ratio) = self.materials(&c, n)?;
         let (gap, glue) = self.gaps_and_glue(&c, n)?;
         let pendulum = self.pendulum(&c)?;
@@ -113,6 +126,12 @@ impl SceneSpec {
         let damping = self.damping(&c, pendulum.as_ref())?;
         let (duration, max_steps) = self.stop(&c, pendulum.as_ref())?;
         let solver = self.solver(&c)?;
+        let chain = match chain {
+            true => {
+                Some(self.chain_setup(&c, n, &young_modulus, &poisson_ratio, &gap, duration)?)
+            }
+            false => None,
+        };
         Ok(Scene {
             n,
             radius,
@@ -128,6 +147,7 @@ impl SceneSpec {
             duration,
             max_steps,
             solver,
+            chain,
         })
     }
 
@@ -139,17 +159,29 @@ impl SceneSpec {
                     origin: self.origin.clone(),
                     line: None,
                     key: "balls".into(),
-                    help: format!("the number of balls, 2 ..= {MAX_BALLS}"),
+                    help: format!(
+                        "the number of balls, 2 ..= {MAX_BALLS} (a cradle) or ..= {MAX_CHAIN} (a granular chain)"
+                    ),
                 })
             }
-            Some(b) if (2..=MAX_BALLS as i64).contains(&b) => b as usize,
-            Some(b) => return Err(c.err("balls", b, format!("an integer in 2 ..= {MAX_BALLS}"))),
+            Some(b) if (2..=MAX_CHAIN as i64).contains(&b) => b as usize,
+            Some(b) => {
+                return Err(c.err(
+                    "balls",
+                    b,
+                    format!(
+                        "an integer in 2 ..= {MAX_CHAIN} (above {MAX_BALLS}: a granular chain, docs/SPEC.md §9)"
+                    ),
+                ))
+            }
         })
     }
 
-    /// Radius, mass (or density), Young's modulus and Poisson ratio per ball.
+    /// Radius, mass (or density), Young's modulus and Poisson ratio per ball;
+    /// a chain's `[pattern]`, `[taper]` and `[impurity]` applied in that
+    /// order before masses come from densities.
     fn materials(&self, c: &Check, n: usize) -> Result<Materials, InputError> {
-        let radius = c.per(
+        let mut radius = c.per(
             "radius",
             self.radius.as_ref(),
             DEFAULT_RADIUS,
@@ -158,32 +190,32 @@ impl SceneSpec {
             positive,
             POS,
         )?;
-        let mass = match (&self.mass, &self.density) {
-            (Some(_), Some(_)) => {
-                return Err(c.err(
-                    "density",
-                    "(also `mass`)",
-                    "give `mass` or `density`, not both",
-                ))
-            }
-            (Some(m), None) => c.per("mass", Some(m), 0.0, n, "ball", positive, POS)?,
-            (None, d) => {
-                let rho = c.per(
-                    "density",
-                    d.as_ref(),
-                    DEFAULT_DENSITY,
-                    n,
-                    "ball",
-                    positive,
-                    POS,
-                )?;
-                rho.iter()
-                    .zip(&radius)
-                    .map(|(rho, r)| rho * 4.0 / 3.0 * std::f64::consts::PI * r * r * r)
-                    .collect()
-            }
+        if self.mass.is_some() && self.density.is_some() {
+            return Err(c.err(
+                "density",
+                "(also `mass`)",
+                "give `mass` or `density`, not both",
+            ));
+        }
+        // Per ball: a given mass, else a density (the default steel's).
+        let mut mass: Vec<Option<f64>> = match &self.mass {
+            Some(m) => c
+                .per("mass", Some(m), 0.0, n, "ball", positive, POS)?
+                .into_iter()
+                .map(Some)
+                .collect(),
+            None => vec![None; n],
         };
-        let young_modulus = c.per(
+        let mut density = c.per(
+            "density",
+            self.density.as_ref(),
+            DEFAULT_DENSITY,
+            n,
+            "ball",
+            positive,
+            POS,
+        )?;
+        let mut young_modulus = c.per(
             "young_modulus",
             self.young_modulus.as_ref(),
             DEFAULT_YOUNG,
@@ -192,15 +224,31 @@ impl SceneSpec {
             positive,
             POS,
         )?;
-        let poisson_ratio = c.per(
+        let mut poisson_ratio = c.per(
             "poisson_ratio",
             self.poisson_ratio.as_ref(),
             DEFAULT_POISSON,
             n,
             "ball",
-            |x| (0.0..0.5).contains(&x),
-            "must be in [0, 0.5)",
+            poisson,
+            POISSON,
         )?;
+        let mut beads = super::granular::Beads {
+            radius: &mut radius,
+            mass: &mut mass,
+            density: &mut density,
+            young_modulus: &mut young_modulus,
+            poisson_ratio: &mut poisson_ratio,
+        };
+        self.pattern(c, &mut beads)?;
+        self.taper(c, &mut beads)?;
+        self.impurity(c, &mut beads)?;
+        let mass = mass
+            .iter()
+            .zip(&density)
+            .zip(&radius)
+            .map(|((m, rho), r)| m.unwrap_or(rho * 4.0 / 3.0 * std::f64::consts::PI * r * r * r))
+            .collect();
         Ok((radius, mass, young_modulus, poisson_ratio))
     }
 
@@ -272,6 +320,8 @@ impl SceneSpec {
                     "give `velocity` or `[launch]`, not both",
                 ))
             }
+            // A pulse excites a chain at rest.
+            (None, None) if self.pulse.is_some() => vec![0.0; n],
             (None, None) => {
                 return Err(InputError::Missing {
                     origin: self.origin.clone(),

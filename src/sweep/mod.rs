@@ -22,6 +22,9 @@ use crate::output::row::{ColType, Field};
 use crate::scene::{Scene, SceneSpec};
 pub use axis::{Param, Value, Values};
 
+/// Why a sweep refuses a granular chain (docs/SPEC.md §9) in this version.
+pub const CHAIN_SWEEPS: &str = "a cradle of at most 64 balls: granular chains (more balls, [walls], [pulse], [probes], [record], [pattern], [taper], [impurity]) run one at a time with `cradle run` in this version; sweeping them is not built yet";
+
 /// Most scenes one sweep may have (refused before anything is allocated).
 pub const MAX_SCENES: u64 = 1_000_000_000;
 

@@ -278,6 +278,14 @@ impl Ctx<'_> {
                 }
                 let mut spec = scene_spec.clone();
                 axis::apply(&mut spec, base, &a.param, v);
+                if spec.validate().is_ok_and(|s| s.chain.is_some()) {
+                    return Err(cx.invalid(
+                        *line,
+                        &a.name,
+                        v.to_string(),
+                        crate::sweep::CHAIN_SWEEPS.into(),
+                    ));
+                }
                 // A value may need another axis' value to be valid (glue "=---"
                 // with two balls launched): it is refused only when no single
                 // value of any other axis makes it valid.
@@ -330,6 +338,14 @@ impl Sweep {
         let mut inputs = Vec::new();
         let scene_spec = cx.scene(&raw, dir, &mut inputs)?;
         let base = scene_spec.validate()?;
+        if base.chain.is_some() {
+            return Err(cx.invalid(
+                None,
+                "scene",
+                scene_spec.origin.clone(),
+                crate::sweep::CHAIN_SWEEPS.into(),
+            ));
+        }
         let mut layout = cx.sample(&raw)?.unwrap_or(Layout::Grid);
         let mut axes = Vec::new();
         if let Some((file, path, from_points)) = cx.points(&raw, dir, &scene_spec, &base)? {

@@ -1,0 +1,351 @@
+//! Long granular chains (docs/SPEC.md §9): up to 10^4 beads between
+//! optional walls, at rest or under a static precompression, struck by a
+//! striker or driven by a force pulse.
+//!
+//! The cradle engine ([`super::integrate`]) steps every contact onset
+//! exactly; in a long chain contacts open and close somewhere every few
+//! steps, so this one takes **fixed steps** of a symmetric composition of
+//! Verlet substeps ([`super::solver::weights`]), chosen from the tolerance
+//! once per run ([`plan`]), and works only on the beads that can move
+//! ([`step::Window`]).
+//!
+//! **State relative to rest.** Contact j (0 ..= n: the left wall, then the
+//! pairs (j−1, j), then the right wall) carries the change p_j of its
+//! overlap from rest, δ_j = δ0_j + p_j, and its *excess* force
+//! e_j = k_j·δ_j^{3/2} − f0_j with f0_j = k_j·δ0_j^{3/2} computed by the same
+//! expression. A chain at rest has p = 0, δ_j = δ0_j bit for bit, e = 0:
+//! it stays at rest exactly, whatever the stiffnesses (no absolute
+//! positions of 10^4 beads, whose differences would not cancel).
+
+pub mod observe;
+pub mod run;
+pub mod step;
+
+use super::contact::{contact_time, hertz_stiffness};
+use super::solver::{weights, Solver, StepRule};
+use crate::scene::{Pulse, Record, Scene};
+
+pub use observe::{ChainOutcome, ProbeOutcome, WallOutcome};
+pub use run::{run, NoRows, Rows};
+
+/// Never fewer steps than this per time scale of the run ([`Beads::time_scale`]).
+pub const MIN_STEPS_PER_SCALE: f64 = 20.0;
+/// Leading-pulse detection floor: a velocity peak counts when it is above
+/// this fraction of the run's velocity scale ([`Beads::v_scale`]).
+pub const PEAK_FLOOR: f64 = 1e-3;
+/// A run without `[stop] duration` ends this long after the leading pulse
+/// peaked at the far end (the last bead, or the right wall's force), as a
+/// fraction of that time.
+pub const END_MARGIN: f64 = 0.1;
+/// A run without `[stop] duration` whose pulse never reaches the far end is
+/// capped at this many times the transit time at the slowest wave speed
+/// the chain can carry (`time_cap` status).
+pub const TIME_CAP_TRANSITS: f64 = 20.0;
+
+/// A compiled chain of beads (the engine's view of a chain [`Scene`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Beads {
+    pub n: usize,
+    pub mass: Vec<f64>,
+    pub inv_mass: Vec<f64>,
+    pub radius: Vec<f64>,
+    /// Hertz stiffness of contact j (0 ..= n; 0 for an absent wall).
+    pub k: Vec<f64>,
+    /// Overlap of contact j at rest: δ0 under precompression, −gap otherwise.
+    pub d0: Vec<f64>,
+    /// k_j·δ0_j^{3/2}, computed as the force is (0 without precompression).
+    pub f0: Vec<f64>,
+    /// Static force (N).
+    pub precompression: f64,
+    pub left_wall: bool,
+    pub right_wall: bool,
+    /// Initial velocity of each bead (m/s).
+    pub v0: Vec<f64>,
+    pub pulse: Option<Pulse>,
+    pub record: Option<Record>,
+    pub probes: Vec<usize>,
+    /// Distance between the centres of beads i and i+1 at rest (m).
+    pub spacing: Vec<f64>,
+    /// `[stop] duration` (s): the run ends exactly there.
+    pub duration: Option<f64>,
+}
+
+/// The Hertz force of overlap `d`, δ·√δ as everywhere in the engine.
+#[inline(always)]
+pub fn hertz(k: f64, d: f64) -> f64 {
+    let d = d.max(0.0);
+    k * d * d.sqrt()
+}
+
+impl Beads {
+    /// Compile a checked chain scene (`scene.chain` is `Some`).
+    pub fn from_scene(s: &Scene) -> Beads {
+        let setup = s.chain.clone().unwrap_or_default();
+        let n = s.n;
+        let mut k = vec![0.0; n + 1];
+        for j in 1..n {
+            k[j] = hertz_stiffness(
+                s.radius[j - 1],
+                s.young_modulus[j - 1],
+                s.poisson_ratio[j - 1],
+                s.radius[j],
+                s.young_modulus[j],
+                s.poisson_ratio[j],
+            );
+        }
+        // Sphere–flat: the wall's radius is infinite (R* = the bead's).
+        let wall_k = |w: &crate::scene::Wall, bead: usize| {
+            hertz_stiffness(
+                s.radius[bead],
+                s.young_modulus[bead],
+                s.poisson_ratio[bead],
+                f64::INFINITY,
+                w.young_modulus,
+                w.poisson_ratio,
+            )
+        };
+        if let Some(w) = &setup.left_wall {
+            k[0] = wall_k(w, 0);
+        }
+        if let Some(w) = &setup.right_wall {
+            k[n] = wall_k(w, n - 1);
+        }
+        let f = setup.precompression;
+        let d0: Vec<f64> = (0..=n)
+            .map(|j| {
+                if k[j] == 0.0 {
+                    0.0
+                } else if f > 0.0 {
+                    (f / k[j]).powf(2.0 / 3.0)
+                } else if (1..n).contains(&j) {
+                    -s.gap[j - 1]
+                } else {
+                    0.0
+                }
+            })
+            .collect();
+        let f0 = (0..=n).map(|j| hertz(k[j], d0[j])).collect();
+        let spacing = (0..n - 1)
+            .map(|i| s.radius[i] + s.radius[i + 1] - d0[i + 1])
+            .collect();
+        Beads {
+            n,
+            inv_mass: s.mass.iter().map(|m| 1.0 / m).collect(),
+            mass: s.mass.clone(),
+            radius: s.radius.clone(),
+            k,
+            d0,
+            f0,
+            precompression: f,
+            left_wall: setup.left_wall.is_some(),
+            right_wall: setup.right_wall.is_some(),
+            v0: s.velocity.clone(),
+            pulse: setup.pulse,
+            record: setup.record,
+            probes: setup.probes,
+            spacing,
+            duration: s.duration,
+        }
+    }
+
+    /// The speed every velocity error is relative to (m/s): the largest
+    /// initial speed, or the speed the pulse's impulse 2Fτ/π gives its bead.
+    pub fn v_scale(&self) -> f64 {
+        let v = self.v0.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        let p = self.pulse.as_ref().map_or(0.0, |p| {
+            2.0 * p.force.abs() * p.duration / std::f64::consts::PI * self.inv_mass[p.bead]
+        });
+        v.max(p)
+    }
+
+    /// Linear stiffness K = (3/2)·k·√δ0 of contact j under precompression (N/m).
+    pub fn linear_stiffness(&self, j: usize) -> f64 {
+        1.5 * self.k[j] * self.d0[j].max(0.0).sqrt()
+    }
+
+    /// The shortest time scale of the run (s): the two-body contact time of
+    /// the stiffest, lightest contact at the velocity scale; under
+    /// precompression also 1/ω_max of the linearised chain (Gershgorin:
+    /// ω² ≤ max_i (K_i + K_{i+1})·2/m_i); with a pulse also τ/π.
+    pub fn time_scale(&self) -> f64 {
+        let v = self.v_scale();
+        let mut t = f64::INFINITY;
+        for j in 0..=self.n {
+            if self.k[j] == 0.0 {
+                continue;
+            }
+            let mu = match j {
+                0 => self.mass[0],
+                j if j == self.n => self.mass[j - 1],
+                j => self.mass[j - 1] * self.mass[j] / (self.mass[j - 1] + self.mass[j]),
+            };
+            if v > 0.0 {
+                t = t.min(contact_time(mu, self.k[j], v));
+            }
+        }
+        if self.precompression > 0.0 {
+            for i in 0..self.n {
+                let w2 = 2.0
+                    * (self.linear_stiffness(i) + self.linear_stiffness(i + 1))
+                    * self.inv_mass[i];
+                t = t.min(1.0 / w2.sqrt());
+            }
+        }
+        if let Some(p) = &self.pulse {
+            t = t.min(p.duration / std::f64::consts::PI);
+        }
+        t
+    }
+
+    /// Length of the chain between the first and last bead's centres (m).
+    pub fn length(&self) -> f64 {
+        self.spacing.iter().sum()
+    }
+
+    /// Distance between the centres of beads `a` < `b` at rest (m).
+    pub fn distance(&self, a: usize, b: usize) -> f64 {
+        self.spacing[a..b].iter().sum()
+    }
+
+    /// The slowest wave the chain carries at a hundredth of the velocity
+    /// scale (m/s): the linear sound speed under precompression, else
+    /// Nesterenko's solitary-wave speed ([`nesterenko_speed`]) of the
+    /// softest, heaviest bead pair.
+    pub fn slowest_wave(&self) -> f64 {
+        let mut c = f64::INFINITY;
+        for i in 0..self.n - 1 {
+            let j = i + 1;
+            let m = self.mass[i].max(self.mass[j]);
+            let a = self.spacing[i];
+            let speed = if self.precompression > 0.0 {
+                a * (self.linear_stiffness(j) / m).sqrt()
+            } else {
+                nesterenko_speed(self.k[j], m, a, 0.01 * self.v_scale())
+            };
+            c = c.min(speed);
+        }
+        c
+    }
+
+    /// Total energy (J) relative to rest: kinetic, plus each contact's
+    /// elastic energy U(δ) − U(δ0) − f0·(δ − δ0) ([`excess_energy`]); with
+    /// both walls fixed the f0 terms sum to zero, so this is conserved.
+    pub fn energy(&self, p: &[f64], v: &[f64]) -> f64 {
+        let kin: f64 = self.mass.iter().zip(v).map(|(m, v)| 0.5 * m * v * v).sum();
+        let el: f64 = (0..=self.n)
+            .map(|j| excess_energy(self.k[j], self.d0[j], p[j]))
+            .sum();
+        kin + el
+    }
+}
+
+/// U(δ0+p) − U(δ0) − k·δ0^{3/2}·p with U(δ) = (2/5)·k·δ^{5/2}⁺, written
+/// without cancellation: for δ, δ0 > 0 and a = √δ, b = √δ0 it is
+/// k·(a−b)²·(0.4a³ + 0.8a²b + 1.2ab² + 0.6b³), a − b = p/(a+b).
+pub fn excess_energy(k: f64, d0: f64, p: f64) -> f64 {
+    if k == 0.0 {
+        return 0.0;
+    }
+    let d = d0 + p;
+    if d0 <= 0.0 {
+        return if d > 0.0 {
+            0.4 * k * d * d * d.sqrt()
+        } else {
+            0.0
+        };
+    }
+    let b = d0.sqrt();
+    if d <= 0.0 {
+        // Opened: −U(δ0) − f0·p with f0 = k·b³.
+        return 0.6 * k * d0 * d0 * b - k * d0 * b * d;
+    }
+    let a = d.sqrt();
+    let amb = p / (a + b);
+    k * amb * amb * (0.4 * a * a * a + 0.8 * a * a * b + 1.2 * a * b * b + 0.6 * b * b * b)
+}
+
+/// Nesterenko's long-wave solitary-wave speed V = (16/25)^{1/5}·c^{4/5}·v_m^{1/5}
+/// for the largest bead velocity `v_m` in the wave, c² = k·a^{5/2}/m
+/// (`a` the bead spacing; for equal spheres c² = 2E/(πρ(1−ν²))).
+pub fn nesterenko_speed(k: f64, m: f64, a: f64, v_m: f64) -> f64 {
+    let c = (k * a.powf(2.5) / m).sqrt();
+    (16.0f64 / 25.0).powf(0.2) * c.powf(0.8) * v_m.powf(0.2)
+}
+
+/// The step, substep weights and end of one chain run.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Plan {
+    /// The step (s).
+    pub h: f64,
+    pub weights: &'static [f64],
+    /// `[stop] duration`, if given: the run ends exactly there.
+    pub duration: Option<f64>,
+    /// Without a duration: the time cap (s).
+    pub max_time: f64,
+    pub max_steps: u64,
+    /// Trace row spacing (s): a whole number of steps.
+    pub every: Option<f64>,
+}
+
+/// Error model of each method on a chain's outcomes (docs/SPEC.md §9):
+/// error ≈ C·(h/t_s)^q relative to the velocity scale, t_s =
+/// [`Beads::time_scale`]. Contacts that open behind a wave are kinks the
+/// fixed step crosses, so the orders are lower than the methods' own: fitted
+/// on a 200-bead uncompressed steel chain struck at one end (the worst of
+/// the probes' peak times and values and every bead's final velocity,
+/// against kahanli6 at tolerance 1e-12; results/chains.md), C with a margin
+/// of 2.
+pub fn chain_error_model(m: crate::scene::Method) -> (f64, f64) {
+    use crate::scene::Method::*;
+    match m {
+        Verlet => (45.0, 2.0),
+        Yoshida4 => (0.04, 2.0),
+        Suzuki4 => (1.0, 2.5),
+        Yoshida6 => (0.62, 2.5),
+        KahanLi6 => (4e-4, 1.5),
+    }
+}
+
+/// At coarse steps yoshida4's error grows with its full order 4, faster
+/// than [`chain_error_model`] says: error ≈ A·(h/t_s)^4 (A = 608 at
+/// h = t_s/20 on the same chain; 1,200 with the margin). The step is the
+/// smaller of the two models'. `None`: the fitted model holds everywhere.
+pub fn coarse_chain_error_model(m: crate::scene::Method) -> Option<f64> {
+    (m == crate::scene::Method::Yoshida4).then_some(1200.0)
+}
+
+/// The fixed step of a chain run (docs/SPEC.md §9): under a tolerance,
+/// h = t_s·(tol/C)^{1/q} with the method's error model (C, q) of
+/// [`chain_error_model`] and t_s = [`Beads::time_scale`], at most t_s/20; a
+/// given `dt` as is. A trace's row spacing `every` is made a whole number
+/// of steps (the step shrinks to every/⌈every/h⌉), so rows fall on steps.
+pub fn plan(beads: &Beads, solver: &Solver, every: Option<f64>) -> Plan {
+    let ts = beads.time_scale();
+    let mut h = match solver.step {
+        StepRule::Dt(dt) => dt,
+        StepRule::Tolerance(tol) => {
+            let (c, q) = chain_error_model(solver.method);
+            let mut h = (ts * (tol / c).powf(1.0 / q)).min(ts / MIN_STEPS_PER_SCALE);
+            if let Some(a) = coarse_chain_error_model(solver.method) {
+                h = h.min(ts * (tol / a).powf(0.25));
+            }
+            h
+        }
+    } * solver.step_factor;
+    if let Some(e) = every {
+        h = e / (e / h).ceil();
+    }
+    let max_time = beads.duration.unwrap_or_else(|| {
+        solver
+            .max_time
+            .min(TIME_CAP_TRANSITS * beads.length() / beads.slowest_wave())
+    });
+    Plan {
+        h,
+        weights: weights(solver.method),
+        duration: beads.duration,
+        max_time,
+        max_steps: solver.max_steps,
+        every,
+    }
+}

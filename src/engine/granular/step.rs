@@ -1,0 +1,175 @@
+//! One fixed step of a chain: a symmetric composition of Verlet substeps
+//! (kick, drift, force, kick; the kicks between substeps merged), over the
+//! window of beads that can move.
+//!
+//! **The window.** A bead at rest (v = 0) with no net force (a = 0) whose
+//! neighbours are also at rest stays exactly as it is: its contacts do not
+//! drift, their forces do not change. Within one step of s substeps a
+//! disturbance spreads at most s + 1 beads (each substep: a drift changes
+//! the contacts of moving beads, the force reaches the next bead, the kick
+//! moves it). So the step works on the beads within [`MARGIN_EXTRA`] + s of
+//! the first and last moving bead, and its results are those of a step
+//! over the whole chain bit for bit (test: `window_changes_no_bit`). Ahead
+//! of a solitary wave in an uncompressed chain, contacts touch at zero
+//! overlap and feel nothing: the window ends a few beads ahead of the front,
+//! where δ^{3/2} of the precursor underflows to zero.
+
+use super::{hertz, Beads};
+
+/// Beads beyond the s + 1 a step can reach, kept in the window for safety.
+pub const MARGIN_EXTRA: usize = 1;
+
+/// A chain's state between steps.
+#[derive(Clone, Debug, PartialEq)]
+pub struct State {
+    /// Steps taken.
+    pub steps: u64,
+    /// Change of each contact's overlap from rest (m), contacts 0 ..= n.
+    pub p: Vec<f64>,
+    /// Bead velocities (m/s).
+    pub v: Vec<f64>,
+    /// Bead accelerations at this state (m/s²).
+    pub a: Vec<f64>,
+    /// Excess force of each contact at this state (N): k·δ^{3/2} − f0.
+    pub e: Vec<f64>,
+    /// Displacement of bead 0 from rest (m): the others follow from `p`.
+    pub x0: f64,
+    /// The window: beads lo .. hi (contacts lo ..= hi).
+    pub lo: usize,
+    pub hi: usize,
+}
+
+impl State {
+    /// The chain at rest (or with its initial velocities), forces evaluated.
+    pub fn start(b: &Beads, weights: &[f64], whole: bool) -> State {
+        let n = b.n;
+        let mut s = State {
+            steps: 0,
+            p: vec![0.0; n + 1],
+            v: b.v0.clone(),
+            a: vec![0.0; n],
+            e: vec![0.0; n + 1],
+            x0: 0.0,
+            lo: 0,
+            hi: n,
+        };
+        forces(b, &mut s, 0.0);
+        if !whole {
+            s.shrink(b, weights.len(), 0.0);
+        }
+        s
+    }
+
+    /// Displacement of every bead from rest (m): x_i = x_{i−1} − p_i.
+    pub fn positions(&self) -> Vec<f64> {
+        let mut x = Vec::with_capacity(self.v.len());
+        let mut xi = self.x0;
+        x.push(xi);
+        for j in 1..self.v.len() {
+            xi -= self.p[j];
+            x.push(xi);
+        }
+        x
+    }
+
+    /// Force of contact j (N): k·δ^{3/2}, δ = δ0 + p.
+    pub fn force(&self, b: &Beads, j: usize) -> f64 {
+        self.e[j] + b.f0[j]
+    }
+
+    /// Re-fit the window around the moving beads (`t`: the time now).
+    fn shrink(&mut self, b: &Beads, stages: usize, t: f64) {
+        let pulse = b.pulse.as_ref().filter(|p| t < p.duration).map(|p| p.bead);
+        let moving = |i: usize| self.v[i] != 0.0 || self.a[i] != 0.0 || Some(i) == pulse;
+        let first = (self.lo..self.hi).find(|&i| moving(i));
+        let Some(first) = first else {
+            (self.lo, self.hi) = (0, 0);
+            if let Some(i) = pulse {
+                (self.lo, self.hi) = (i, i + 1);
+            }
+            return;
+        };
+        let last = (first..self.hi).rev().find(|&i| moving(i)).unwrap_or(first);
+        let m = stages + 1 + MARGIN_EXTRA;
+        let pulse_lo = pulse.unwrap_or(usize::MAX);
+        self.lo = first.min(pulse_lo).saturating_sub(m);
+        self.hi = (last.max(pulse.unwrap_or(0)) + 1 + m).min(self.v.len());
+    }
+}
+
+/// Excess forces of contacts lo ..= hi and accelerations of beads lo .. hi
+/// at time `t` (the pulse's phase).
+#[inline]
+fn forces(b: &Beads, s: &mut State, t: f64) {
+    let (lo, hi) = (s.lo, s.hi);
+    let e = &mut s.e[lo..=hi];
+    let (k, d0, f0, p) = (&b.k[lo..=hi], &b.d0[lo..=hi], &b.f0[lo..=hi], &s.p[lo..=hi]);
+    for j in 0..e.len() {
+        e[j] = hertz(k[j], d0[j] + p[j]) - f0[j];
+    }
+    let a = &mut s.a[lo..hi];
+    let im = &b.inv_mass[lo..hi];
+    let e = &s.e[lo..=hi];
+    for i in 0..a.len() {
+        a[i] = (e[i] - e[i + 1]) * im[i];
+    }
+    if let Some(pl) = &b.pulse {
+        if t < pl.duration && (lo..hi).contains(&pl.bead) {
+            let f = pl.force * (std::f64::consts::PI * t / pl.duration).sin();
+            s.a[pl.bead] += f * b.inv_mass[pl.bead];
+        }
+    }
+}
+
+#[inline]
+fn kick(s: &mut State, c: f64) {
+    let (lo, hi) = (s.lo, s.hi);
+    for (v, a) in s.v[lo..hi].iter_mut().zip(&s.a[lo..hi]) {
+        *v += c * a;
+    }
+}
+
+/// p_j += dt·(v_{j−1} − v_j) for contacts lo ..= hi (walls do not move).
+#[inline]
+fn drift(s: &mut State, dt: f64) {
+    let n = s.v.len();
+    let (lo, hi) = (s.lo, s.hi);
+    if lo == hi {
+        return;
+    }
+    let (a, z) = (lo.max(1), hi.min(n - 1));
+    if a <= z {
+        let (p, v) = (&mut s.p[a..=z], &s.v[a - 1..=z]);
+        for j in 0..p.len() {
+            p[j] += dt * (v[j] - v[j + 1]);
+        }
+    }
+    if lo == 0 {
+        s.p[0] -= dt * s.v[0];
+        s.x0 += dt * s.v[0];
+    }
+    if hi == n {
+        s.p[n] += dt * s.v[n - 1];
+    }
+}
+
+/// One step from time `t0` to `t0 + h` with substep weights `w`; `whole`:
+/// the window is the whole chain (the reference the window is tested against).
+pub fn step(b: &Beads, s: &mut State, t0: f64, h: f64, w: &[f64], whole: bool) {
+    let mut t = t0;
+    kick(s, 0.5 * w[0] * h);
+    for (j, &wj) in w.iter().enumerate() {
+        drift(s, wj * h);
+        t += wj * h;
+        forces(b, s, t);
+        let c = match w.get(j + 1) {
+            Some(next) => 0.5 * (wj + next) * h,
+            None => 0.5 * wj * h,
+        };
+        kick(s, c);
+    }
+    s.steps += 1;
+    if !whole {
+        s.shrink(b, w.len(), t0 + h);
+    }
+}
