@@ -3,7 +3,7 @@
 //! `[pattern]`, `[taper]`, `[impurity]`, checked as every scene key is
 //! (file:line, key, value, what is allowed).
 
-use super::validate::{non_negative, poisson, positive, Check, POISSON, POS};
+use super::check::{non_negative, poisson, positive, Check, POISSON, POS};
 use super::*;
 
 /// The per-bead arrays `[pattern]`, `[taper]` and `[impurity]` rewrite.

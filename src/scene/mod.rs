@@ -4,6 +4,7 @@
 //! one value per ball) → [`crate::engine::Chain`] (rigid bodies) → backend.
 
 pub mod builtin;
+mod check;
 mod granular;
 pub(crate) mod spec;
 mod validate;

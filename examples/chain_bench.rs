@@ -1,0 +1,111 @@
+//! The tables of results/chains.md: granular chains against theory, the
+//! work-precision of each method on a struck 1,000-bead chain, and the cost
+//! per bead-step from 10^2 to 10^4 beads.
+//!
+//! `cargo run --release --example chain_bench`
+
+use hertz_cradle::engine::granular::{self, Beads, ChainOutcome, NoRows};
+use hertz_cradle::engine::{Overrides, Solver};
+use hertz_cradle::scene::{Method, Scene};
+use std::time::Instant;
+
+fn solve(text: &str, method: Option<Method>, tol: Option<f64>) -> (Beads, ChainOutcome, f64) {
+    let s = Scene::from_toml_str("bench", text).unwrap();
+    let b = Beads::from_scene(&s);
+    let o = Overrides {
+        method,
+        tolerance: tol,
+        ..Default::default()
+    };
+    let plan = granular::plan(&b, &Solver::resolve(&s, &o).unwrap(), None);
+    let t = Instant::now();
+    let out = granular::run(&b, &plan, &mut NoRows);
+    (b, out, t.elapsed().as_secs_f64())
+}
+
+fn struck(n: usize, v: f64, extra: &str) -> String {
+    format!(
+        "balls = {n}\nradius = 0.005\n[launch]\nballs = 1\nvelocity = {v}\n[probes]\nbeads = [{}, {}]\n{extra}",
+        n / 4,
+        3 * n / 4
+    )
+}
+
+fn main() {
+    println!("## Solitary wave (uniform steel chain, R = 5 mm, 200 beads, struck at bead 0; tolerance 1e-9)\n");
+    println!("| striker v (m/s) | v_m (m/s) | v_m / v | V measured (m/s) | V Nesterenko (m/s) | deviation | V / v_m^(1/5) | FWHM (beads) |");
+    println!("|---|---|---|---|---|---|---|---|");
+    for v in [1e-3, 1e-2, 1e-1, 1.0] {
+        let (b, o, _) = solve(&struck(200, v, ""), None, Some(1e-9));
+        let vm = o.probes[1].peak_velocity;
+        let th = granular::nesterenko_speed(b.k[1], b.mass[0], b.spacing[0], vm);
+        println!(
+            "| {v:e} | {vm:.6e} | {:.6} | {:.4} | {th:.4} | {:+.3}% | {:.6} | {:.3} |",
+            vm / v,
+            o.pulse_speed,
+            100.0 * (o.pulse_speed / th - 1.0),
+            o.pulse_speed / vm.powf(0.2),
+            o.pulse_width
+        );
+    }
+    println!("\n## Linear sound speed (400 beads, both walls, pulse 0.01 N × 20 µs at bead 0; tolerance 1e-8)\n");
+    println!("| F0 (N) | c0 = a·√(K/m) (m/s) | pulse speed (m/s) | deviation |");
+    println!("|---|---|---|---|");
+    for f0 in [1.0, 10.0, 100.0] {
+        let text = format!("balls = 400\nradius = 0.005\n[walls]\nleft = true\nright = true\nprecompression = {f0}\n[pulse]\nbead = 0\nforce = 0.01\nduration = 2e-5\n[probes]\nbeads = [100, 300]\n");
+        let (b, o, _) = solve(&text, None, Some(1e-8));
+        let kk = 1.5 * b.k[1].powf(2.0 / 3.0) * f64::powf(f0, 1.0 / 3.0);
+        let c0 = b.spacing[0] * (kk / b.mass[0]).sqrt();
+        println!(
+            "| {f0} | {c0:.4} | {:.4} | {:+.3}% |",
+            o.pulse_speed,
+            100.0 * (o.pulse_speed / c0 - 1.0)
+        );
+    }
+
+    let n = 1000;
+    let text = struck(n, 0.1, "[stop]\nduration = 0.021\n");
+    let (_, r, tr) = solve(&text, Some(Method::Yoshida4), Some(1e-10));
+    println!("\n## Work-precision: 1,000 beads struck at 0.1 m/s, run 21 ms (the wave at bead ~890), one thread\n");
+    println!("Reference: yoshida4 at tolerance 1e-10 ({} steps, {tr:.1} s). Error = the largest of the probes' (250, 750) peak times / run time and peak velocities / v, and every bead's final velocity / v.\n", r.steps);
+    println!("| method | tolerance | error | steps | time (s) | bead-steps/s (all beads) |");
+    println!("|---|---|---|---|---|---|");
+    for m in [Method::Verlet, Method::Yoshida4, Method::KahanLi6] {
+        for tol in [1e-4, 1e-6, 1e-8] {
+            if m == Method::Verlet && tol < 1e-6 {
+                continue;
+            }
+            let (_, o, secs) = solve(&text, Some(m), Some(tol));
+            let mut e = 0.0f64;
+            for (p, q) in o.probes.iter().zip(&r.probes) {
+                e = e.max((p.arrival - q.arrival).abs() / r.t_end);
+                e = e.max((p.peak_velocity - q.peak_velocity).abs() / 0.1);
+            }
+            for (a, c) in o.v.iter().zip(&r.v) {
+                e = e.max((a - c).abs() / 0.1);
+            }
+            println!(
+                "| {} | {tol:e} | {e:.2e} | {} | {secs:.3} | {:.3e} |",
+                m.name(),
+                o.steps,
+                (o.steps * n as u64) as f64 / secs
+            );
+        }
+    }
+
+    println!("\n## Cost per bead-step (whole chain moving: precompressed, a pulse at bead 0 and a striker at the far end; kahanli6, 20,000 steps)\n");
+    println!("| beads | time (s) | ns per bead-step | relative to 100 |");
+    println!("|---|---|---|---|");
+    let mut base = 0.0;
+    for n in [100, 1000, 10000] {
+        let mut v = vec!["0.0".to_string(); n];
+        v[n - 1] = "-0.01".into();
+        let text = format!("balls = {n}\nradius = 0.005\nvelocity = [{}]\n[walls]\nleft = true\nright = true\nprecompression = 10.0\n[pulse]\nbead = 0\nforce = 1.0\nduration = 1e-5\n[solver]\ndt = 5e-8\n[stop]\nduration = 1e-3\n", v.join(","));
+        let (_, o, secs) = solve(&text, None, None);
+        let ns = secs * 1e9 / (o.steps as f64 * n as f64);
+        if n == 100 {
+            base = ns;
+        }
+        println!("| {n} | {secs:.3} | {ns:.2} | {:.2} |", ns / base);
+    }
+}
