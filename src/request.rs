@@ -328,6 +328,25 @@ pub struct RunSettings {
     pub trace_dt: Option<f64>,
 }
 
+/// A trace's output path, checked (`--trace`): never the scene file it
+/// comes from.
+fn trace_output(name: &str, path: &Path) -> Result<PathBuf, InputError> {
+    let inputs: Vec<PathBuf> = Path::new(name)
+        .exists()
+        .then(|| name.into())
+        .into_iter()
+        .collect();
+    guard::output("--trace", path, &inputs, &[])
+}
+
+/// The trace file, created for buffered writing.
+fn create_trace(path: &Path) -> anyhow::Result<std::io::BufWriter<std::fs::File>> {
+    use anyhow::Context;
+    let file = std::fs::File::create(path)
+        .with_context(|| format!("cannot create trace file {}", path.display()))?;
+    Ok(std::io::BufWriter::new(file))
+}
+
 /// A checked scene, ready to run.
 #[derive(Debug)]
 pub struct RunRequest {
@@ -457,12 +476,7 @@ impl RunRequest {
                     .into())
                 }
             };
-            let inputs: Vec<PathBuf> = Path::new(name)
-                .exists()
-                .then(|| name.into())
-                .into_iter()
-                .collect();
-            let path = guard::output("--trace", path, &inputs, &[])?;
+            let path = trace_output(name, path)?;
             let plan = granular::plan(&beads, &solver, Some(every));
             // The run's end: its duration, else the cap (a bound).
             let t_end = plan.duration.unwrap_or(plan.max_time);
@@ -511,10 +525,8 @@ impl RunRequest {
         Ok(match &self.trace {
             None => granular::run(beads, &plan, &mut granular::NoRows),
             Some((path, _)) => {
-                let file = std::fs::File::create(path)
-                    .with_context(|| format!("cannot create trace file {}", path.display()))?;
                 let mut tw = crate::output::trace::ChainTraceWriter::new(
-                    std::io::BufWriter::new(file),
+                    create_trace(path)?,
                     beads,
                     self.trace_beads.clone(),
                 )
@@ -549,12 +561,7 @@ impl RunRequest {
             Some(d) => return Err(flag("--trace-dt", &d.to_string(), "a time > 0 (s)")),
             None => crate::output::trace::default_every(chain),
         };
-        let inputs: Vec<PathBuf> = Path::new(name)
-            .exists()
-            .then(|| name.into())
-            .into_iter()
-            .collect();
-        let path = guard::output("--trace", path, &inputs, &[])?;
+        let path = trace_output(name, path)?;
         // The trace's size, known before it is written: the run's end
         // time from a silent run (one scene: milliseconds).
         let t_end = simulate_chain(chain, solver, &mut Silent).t_end;
@@ -592,14 +599,9 @@ impl RunRequest {
         Ok(match &self.trace {
             None => simulate_chain(chain, solver, &mut Silent),
             Some((path, every)) => {
-                let file = std::fs::File::create(path)
-                    .with_context(|| format!("cannot create trace file {}", path.display()))?;
-                let mut tw = crate::output::trace::TraceWriter::new(
-                    std::io::BufWriter::new(file),
-                    chain,
-                    *every,
-                )
-                .with_context(|| format!("writing {}", path.display()))?;
+                let mut tw =
+                    crate::output::trace::TraceWriter::new(create_trace(path)?, chain, *every)
+                        .with_context(|| format!("writing {}", path.display()))?;
                 let o = simulate_chain(chain, solver, &mut tw);
                 tw.finish()
                     .with_context(|| format!("writing {}", path.display()))?;

@@ -21,7 +21,7 @@ pub mod observe;
 pub mod run;
 pub mod step;
 
-use super::contact::{contact_time, hertz_stiffness};
+use super::contact::{contact_time, hertz_energy, hertz_stiffness};
 use super::solver::{weights, Solver, StepRule};
 use crate::scene::{Pulse, Record, Scene};
 
@@ -74,7 +74,9 @@ pub struct Beads {
     pub duration: Option<f64>,
 }
 
-/// The Hertz force of overlap `d`, δ·√δ as everywhere in the engine.
+/// The Hertz force of overlap `d`, δ·√δ as everywhere in the engine; the
+/// same values as [`super::contact::hertz_force`], written without a branch
+/// so the chain's force loop vectorises.
 #[inline(always)]
 pub fn hertz(k: f64, d: f64) -> f64 {
     let d = d.max(0.0);
@@ -260,11 +262,7 @@ pub fn excess_energy(k: f64, d0: f64, p: f64) -> f64 {
     }
     let d = d0 + p;
     if d0 <= 0.0 {
-        return if d > 0.0 {
-            0.4 * k * d * d * d.sqrt()
-        } else {
-            0.0
-        };
+        return hertz_energy(k, d);
     }
     let b = d0.sqrt();
     if d <= 0.0 {

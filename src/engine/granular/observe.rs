@@ -53,19 +53,11 @@ pub fn integral(f: [f64; 2], d: [f64; 2], s: [f64; 2]) -> f64 {
     0.5 * (f[0] + f[1]) + 0.1 * (d[0] - d[1]) + (s[0] + s[1]) / 120.0
 }
 
-/// Rate of change of δ_j (m/s): v_{j−1} − v_j, walls fixed.
-fn ddot(st: &State, j: usize) -> f64 {
-    let n = st.v.len();
-    let l = if j == 0 { 0.0 } else { st.v[j - 1] };
-    let r = if j == n { 0.0 } else { st.v[j] };
-    l - r
-}
-
-/// Second rate of δ_j (m/s²).
-fn dddot(st: &State, j: usize) -> f64 {
-    let n = st.a.len();
-    let l = if j == 0 { 0.0 } else { st.a[j - 1] };
-    let r = if j == n { 0.0 } else { st.a[j] };
+/// x_{j−1} − x_j for a per-bead rate x (v or a) across contact j: the rate
+/// of δ_j; the walls do not move.
+fn across(x: &[f64], j: usize) -> f64 {
+    let l = if j == 0 { 0.0 } else { x[j - 1] };
+    let r = x.get(j).copied().unwrap_or(0.0);
     l - r
 }
 
@@ -79,7 +71,7 @@ pub fn force_rates(b: &Beads, st: &State, j: usize) -> (f64, f64, f64) {
     }
     let k = b.k[j];
     let sq = d.sqrt();
-    let (r1, r2) = (ddot(st, j), dddot(st, j));
+    let (r1, r2) = (across(&st.v, j), across(&st.a, j));
     (
         k * d * sq,
         1.5 * k * sq * r1,
@@ -89,9 +81,21 @@ pub fn force_rates(b: &Beads, st: &State, j: usize) -> (f64, f64, f64) {
 
 /// Velocity, acceleration and jerk of bead i.
 pub fn bead_rates(b: &Beads, st: &State, i: usize, t: f64) -> (f64, f64, f64) {
-    let (_, fl, _) = force_rates(b, st, i);
-    let (_, fr, _) = force_rates(b, st, i + 1);
-    let mut jerk = (fl - fr) * b.inv_mass[i];
+    let (fl, fr) = (force_rates(b, st, i), force_rates(b, st, i + 1));
+    bead_rates_with(b, st, i, t, fl.1, fr.1)
+}
+
+/// [`bead_rates`] from the rates of bead i's contact forces, left and right
+/// (N/s), when the caller has them.
+pub fn bead_rates_with(
+    b: &Beads,
+    st: &State,
+    i: usize,
+    t: f64,
+    left: f64,
+    right: f64,
+) -> (f64, f64, f64) {
+    let mut jerk = (left - right) * b.inv_mass[i];
     if let Some(p) = b.pulse.as_ref().filter(|p| p.bead == i && t < p.duration) {
         let w = std::f64::consts::PI / p.duration;
         jerk += p.force * w * (w * t).cos() * b.inv_mass[i];

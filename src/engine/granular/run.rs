@@ -144,10 +144,10 @@ impl Watch {
         for (k, &i) in b.probes.iter().enumerate() {
             let (vp, fp) = &mut self.probes[k];
             let had = vp.found.is_some();
-            let (v, a, j) = bead_rates(b, st, i, t);
-            vp.see(t, [v, a, j], self.floor_v);
             let (fl, dl, sl) = force_rates(b, st, i);
             let (fr, dr, sr) = force_rates(b, st, i + 1);
+            let (v, a, j) = bead_rates_with(b, st, i, t, dl, dr);
+            vp.see(t, [v, a, j], self.floor_v);
             let base = 0.5 * (b.f0[i] + b.f0[i + 1]);
             let q = [0.5 * (fl + fr) - base, 0.5 * (dl + dr), 0.5 * (sl + sr)];
             fp.see(t, q, self.floor_f);
