@@ -45,10 +45,10 @@ fn main() -> Result<(), hertz_cradle::Error> {
     println!("{:>10} {:>8} {:>10}", "gap[1] m", "ejected", "v_2 m/s");
     for r in rows.lock().unwrap().iter() {
         let gap = r.params[0].as_f64().unwrap_or(f64::NAN);
-        println!(
-            "{gap:>10.2e} {:>8} {:>10.6}",
-            r.outcome.ejected, r.outcome.v[2]
-        );
+        // A sweep of cradles: each row's outcome is a cradle's.
+        if let Some(o) = r.outcome.cradle() {
+            println!("{gap:>10.2e} {:>8} {:>10.6}", o.ejected, o.v[2]);
+        }
     }
     println!(
         "{} scenes ({} ok) in {:.3} s on {} -> {}",

@@ -21,7 +21,7 @@
 //! let ejected = Arc::new(Mutex::new(vec![]));
 //! let sink = ejected.clone();
 //! let summary = req.run(Hooks {
-//!     on_row: Some(Arc::new(move |row| sink.lock().unwrap().push((row.id, row.outcome.ejected)))),
+//!     on_row: Some(Arc::new(move |row| sink.lock().unwrap().push((row.id, row.outcome.cradle().unwrap().ejected)))),
 //!     ..Hooks::default()
 //! })?;
 //! println!("{} scenes, {} ok", summary.scenes, summary.ok);
@@ -239,7 +239,25 @@ impl SweepRequest {
         let threads = settings.threads.map(threads).transpose()?;
         sweep.check_overrides(&overrides)?;
         let out = guard::output("--out", &out_given, &sweep.inputs, COMPANIONS)?;
-        let precision = Solver::resolve(&sweep.base, &overrides)?.precision;
+        let solver = Solver::resolve(&sweep.base, &overrides)?;
+        let precision = solver.precision;
+        if sweep.chains.is_some() {
+            granular::check_solver(&solver)?;
+            if settings.error_estimate {
+                return Err(flag(
+                    "--error-estimate",
+                    "(given)",
+                    "a sweep of cradles: a granular chain's step is chosen from the tolerance by its fitted error model (docs/SPEC.md §9); run the sweep again at a tighter tolerance to see the error",
+                ));
+            }
+            if settings.backend == BackendChoice::Gpu {
+                return Err(flag(
+                    "--backend",
+                    "gpu",
+                    "cpu or auto for a sweep of granular chains: the GPU chain kernel is not built yet (docs/SPEC.md §9)",
+                ));
+            }
+        }
         Ok(SweepRequest {
             sweep,
             out,
@@ -290,7 +308,13 @@ impl SweepRequest {
     /// given, every row written to the output (then its sidecar, then the
     /// output published under its name) and given to `hooks.on_row`.
     pub fn run(&self, hooks: Hooks) -> Result<Summary, Error> {
-        let backend = crate::backend::choose(self.backend, self.precision)?;
+        // Granular chains run on the CPU engine (no GPU chain kernel yet;
+        // `--backend gpu` was refused when the request was checked).
+        let backend: Box<dyn crate::backend::Backend> = if self.sweep.chains.is_some() {
+            Box::new(crate::backend::cpu::Cpu)
+        } else {
+            crate::backend::choose(self.backend, self.precision)?
+        };
         let opts = Options {
             out: self.out.clone(),
             resume: self.resume,
@@ -430,14 +454,7 @@ impl RunRequest {
         solver: Solver,
         settings: &RunSettings,
     ) -> Result<RunRequest, Error> {
-        if solver.model != Model::Hertz {
-            return Err(flag(
-                "--model",
-                solver.model.name(),
-                "hertz for a granular chain (the comparison models are for cradles)",
-            )
-            .into());
-        }
+        granular::check_solver(&solver)?;
         let beads = Beads::from_scene(&scene);
         let record = scene.chain.as_ref().and_then(|c| c.record.clone());
         let (mut trace, mut trace_beads) = (None, vec![]);

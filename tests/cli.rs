@@ -528,22 +528,28 @@ fn a_granular_chain_runs_with_its_probes_walls_and_record() {
     for (i, t) in times[..times.len() - 1].iter().enumerate() {
         assert!((t - i as f64 * 1e-4).abs() < 1e-15, "row {i} at {t}");
     }
-    // --trace-dt must agree with [record] every; a sweep refuses a chain.
+    // --trace-dt must agree with [record] every; a chain sweep refuses the
+    // GPU backend (no chain kernel yet) and the settings it cannot honour.
     let e = bad_input(&["run", &scene, "--trace", t, "--trace-dt", "1e-5"]);
     assert!(e.contains("--trace-dt") && e.contains("every"), "{e}");
+    let e = bad_input(&["run", &scene, "--precision", "f32"]);
+    assert!(e.contains("--precision") && e.contains("f64"), "{e}");
     let sweep = write(
         &dir,
         "s.toml",
-        "scene = \"chain.toml\"\n[[axis]]\nparam = \"gap\"\nvalues = [0.0]\n",
+        "scene = \"chain.toml\"\n[[axis]]\nparam = \"walls.young_modulus\"\nvalues = [1e11, 2e11]\n",
     );
-    let e = bad_input(&[
-        "sweep",
-        &sweep,
-        "--out",
-        dir.path().join("o.csv").to_str().unwrap(),
-    ]);
-    assert!(
-        e.contains("granular chains") && e.contains("cradle run"),
-        "{e}"
-    );
+    let o = dir.path().join("o.csv");
+    let o = o.to_str().unwrap();
+    for (flags, says) in [
+        (&["--backend", "gpu"][..], "GPU chain kernel"),
+        (&["--error-estimate"][..], "--error-estimate"),
+        (&["--precision", "df64"][..], "f64"),
+    ] {
+        let mut args = vec!["sweep", &sweep, "--out", o];
+        args.extend_from_slice(flags);
+        let e = bad_input(&args);
+        assert!(e.contains(says), "{flags:?}: {e}");
+    }
+    assert!(!std::path::Path::new(o).exists());
 }

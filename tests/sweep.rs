@@ -1008,8 +1008,9 @@ fn typed_api_rows_are_the_tables_rows() {
             panic!("{:?}", r.params)
         };
         assert_eq!(f[2].parse::<f64>().unwrap(), gap);
-        assert_eq!(f[3], r.outcome.status.name());
-        assert_eq!(f[4].parse::<f64>().unwrap(), r.outcome.v[0], "{line}");
+        assert_eq!(f[3], r.outcome.status().name());
+        let o = r.outcome.cradle().expect("a cradle's row");
+        assert_eq!(f[4].parse::<f64>().unwrap(), o.v[0], "{line}");
     }
     // The CLI on the same sweep: the same bytes.
     let file = d.path().join("small.toml");
@@ -1076,4 +1077,167 @@ fn typed_api_errors_and_cancellation() {
         .run(Hooks::default())
         .unwrap();
     assert_eq!(fs::read(&out).unwrap(), fs::read(&fresh).unwrap());
+}
+
+/// A sweep of granular chains (docs/SPEC.md §9): dotted axis names, the
+/// chain's columns, every row the chain engine's run of that scene.
+const CHAINS: &str = r#"
+[scene]
+balls = 80
+radius = 0.005
+[scene.walls]
+left = true
+right = true
+precompression = 1.0
+[scene.pattern]
+radius = [0.005, 0.004]
+[scene.pulse]
+bead = 0
+force = 0.5
+duration = 2e-5
+[scene.probes]
+beads = [20, 60]
+[scene.solver]
+tolerance = 1e-4
+
+[[axis]]
+param = "walls.precompression"
+values = [0.5, 2.0]
+
+[[axis]]
+param = "pattern.radius[1]"
+values = [0.003, 0.004]
+"#;
+
+#[test]
+fn a_sweep_of_chains_writes_each_chains_own_run() {
+    use hertz_cradle::backend::BackendChoice;
+    use hertz_cradle::engine::granular::{self, Beads, NoRows};
+    use hertz_cradle::engine::{Overrides, Solver};
+    use hertz_cradle::output::chain_row;
+    use hertz_cradle::{Hooks, SweepRequest, SweepRow, SweepSettings};
+    use std::sync::{Arc, Mutex};
+    let d = tempfile::tempdir().unwrap();
+    let out = d.path().join("chains.csv");
+    let settings = SweepSettings {
+        backend: BackendChoice::Cpu,
+        ..SweepSettings::default()
+    };
+    let req = SweepRequest::from_toml("chains", CHAINS, ".", &out, &settings).unwrap();
+    let rows: Arc<Mutex<Vec<SweepRow>>> = Arc::default();
+    let r2 = rows.clone();
+    let s = req
+        .run(Hooks {
+            on_row: Some(Arc::new(move |r| r2.lock().unwrap().push(r.clone()))),
+            ..Hooks::default()
+        })
+        .unwrap();
+    assert_eq!((s.scenes, s.ok), (4, 4));
+    let text = fs::read_to_string(&out).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    // Above 64 beads the final velocities are the probes' only.
+    assert_eq!(
+        header[..13],
+        [
+            "id",
+            "walls.precompression",
+            "pattern.radius[1]",
+            "status",
+            "arrival_20",
+            "peak_v_20",
+            "peak_f_20",
+            "arrival_60",
+            "peak_v_60",
+            "peak_f_60",
+            "v_20",
+            "v_60",
+            "pulse_speed"
+        ]
+    );
+    let col = |f: &[&str], name: &str| -> f64 {
+        f[header.iter().position(|h| *h == name).unwrap()]
+            .parse()
+            .unwrap()
+    };
+    let rows = rows.lock().unwrap();
+    let mut speeds = vec![];
+    for (line, typed) in lines.zip(rows.iter()) {
+        let f: Vec<&str> = line.split(',').collect();
+        let id: u64 = f[0].parse().unwrap();
+        assert_eq!(typed.id, id);
+        // The row is the chain engine's run of scene `id`, field for field.
+        let scene = req.sweep.scene(id).unwrap();
+        let beads = Beads::from_scene(&scene);
+        let solver = Solver::resolve(&scene, &Overrides::default()).unwrap();
+        let o = granular::run(&beads, &granular::plan(&beads, &solver, None), &mut NoRows);
+        assert_eq!(f[3..], chain_row::fields(&beads, &o)[..], "row {id}");
+        assert_eq!(typed.outcome.chain().unwrap().steps, o.steps);
+        // The axes took effect: the walls carry the precompression swept,
+        // the pulse passes both probes, the dimer's small bead changes it.
+        let f0 = [0.5, 2.0][id as usize / 2];
+        assert_eq!(col(&f, "walls.precompression"), f0);
+        assert_eq!(beads.radius[1], [0.003, 0.004][id as usize % 2]);
+        assert!(col(&f, "wall_left_peak_force") > f0, "{line}");
+        assert!(col(&f, "arrival_60") > col(&f, "arrival_20"), "{line}");
+        speeds.push(col(&f, "pulse_speed"));
+    }
+    assert_eq!(speeds.len(), 4);
+    // Sound travels faster under more precompression.
+    assert!(speeds[2] > speeds[0] && speeds[3] > speeds[1], "{speeds:?}");
+    // The CLI, one thread: the same bytes; Parquet: the same rows.
+    let file = d.path().join("chains.toml");
+    fs::write(&file, CHAINS).unwrap();
+    let cli_out = d.path().join("cli.csv");
+    cradle()
+        .args(["sweep", file.to_str().unwrap(), "--threads", "1", "--out"])
+        .arg(&cli_out)
+        .assert()
+        .success();
+    assert_eq!(fs::read_to_string(&cli_out).unwrap(), text);
+    let pq = d.path().join("chains.parquet");
+    cradle()
+        .args(["sweep", file.to_str().unwrap(), "--out"])
+        .arg(&pq)
+        .assert()
+        .success();
+    let (h, pq_rows) = hertz_cradle::output::parquet_file::read_text(&pq).unwrap();
+    assert_eq!(h.join(","), text.lines().next().unwrap());
+    for (r, line) in pq_rows.iter().zip(text.lines().skip(1)) {
+        assert_eq!(r.join(","), line);
+    }
+}
+
+#[test]
+fn chain_sweeps_refuse_what_they_cannot_run() {
+    let chain_axis = |param: &str, values: &str| {
+        CHAINS.split("[[axis]]").next().unwrap().to_string()
+            + &format!("[[axis]]\nparam = \"{param}\"\nvalues = {values}\n")
+    };
+    // A pattern index outside the period, an array the pattern lacks.
+    let e = sweep_text(&chain_axis("pattern.radius[2]", "[0.003]")).unwrap_err();
+    assert!(
+        e.contains("pattern.radius[2]") && e.contains("0 ..= 1"),
+        "{e}"
+    );
+    let e = sweep_text(&chain_axis("pattern.mass[0]", "[0.003]")).unwrap_err();
+    assert!(e.contains("[pattern] table (it has none)"), "{e}");
+    // An axis of a key the pattern replaces would label values never used.
+    let text = chain_axis("radius", "[0.004]")
+        + "[[axis]]\nparam = \"pattern.radius[0]\"\nvalues = [0.003]\n";
+    let e = sweep_text(&text).unwrap_err();
+    assert!(e.contains("pattern.radius[0]"), "{e}");
+    // A value that turns a chain into a cradle, or a cradle into a chain.
+    let e = sweep_text(&chain_axis("balls", "[62, 80]")).map(|s| s.total);
+    assert_eq!(
+        e,
+        Ok(2),
+        "a chain of 62 beads with [walls] is still a chain"
+    );
+    let cradle = "[scene]\nballs = 5\nvelocity = [1.0, 0, 0, 0, 0]\n[[axis]]\nparam = \"taper.ratio\"\nvalues = [0.1]\n";
+    let e = sweep_text(cradle).unwrap_err();
+    assert!(e.contains("all cradles or all granular chains"), "{e}");
+    // Bad values name the key and what is allowed.
+    let e = sweep_text(&chain_axis("taper.ratio", "[1.5]")).unwrap_err();
+    assert!(e.contains("taper.ratio") && e.contains("1.5"), "{e}");
 }

@@ -1,6 +1,9 @@
 //! The CPU backend: every scene of a batch on the rayon pool.
 
-use super::{Backend, Job};
+use rayon::prelude::*;
+
+use super::{Backend, ChainSource, Job};
+use crate::engine::granular::{self, ChainOutcome};
 use crate::engine::{simulate_batch_parallel, Outcome};
 
 pub struct Cpu;
@@ -30,5 +33,20 @@ impl Backend for Cpu {
                 Job::Invalid { n_balls } => Outcome::invalid(*n_balls),
             })
             .collect())
+    }
+
+    /// Every chain a task of its own (a chain's cost varies with its
+    /// length and speed: one long chain must not hold others back).
+    fn run_chains(&self, n: usize, job: ChainSource) -> anyhow::Result<Vec<ChainOutcome>> {
+        (0..n)
+            .into_par_iter()
+            .with_max_len(1)
+            .map(|k| {
+                Ok(match job(k)? {
+                    Some(j) => granular::run(&j.beads, &j.plan, &mut granular::NoRows),
+                    None => ChainOutcome::invalid(),
+                })
+            })
+            .collect()
     }
 }

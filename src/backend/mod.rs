@@ -6,8 +6,9 @@ pub mod gpu;
 pub mod layout;
 
 use crate::choice::Choice;
+use crate::engine::granular::{Beads, ChainOutcome, Plan};
 use crate::engine::{Chain, Outcome, Solver, Status};
-use crate::error::flag;
+use crate::error::{flag, InputError};
 use crate::scene::Precision;
 
 /// Scenes per batch on the CPU: the unit of work of a sweep lane and of a
@@ -46,6 +47,16 @@ pub enum Job {
     Invalid { n_balls: usize },
 }
 
+/// A granular chain of a sweep, compiled and planned (docs/SPEC.md §9).
+#[derive(Clone, Debug)]
+pub struct ChainJob {
+    pub beads: Beads,
+    pub plan: Plan,
+}
+
+/// Builds chain k of a batch for [`Backend::run_chains`].
+pub type ChainSource<'a> = &'a (dyn Fn(usize) -> Result<Option<ChainJob>, InputError> + Sync);
+
 pub trait Backend: Sync {
     /// `cpu` or `gpu`.
     fn name(&self) -> &'static str;
@@ -65,6 +76,16 @@ pub trait Backend: Sync {
     /// What a device did so far (GPU backends).
     fn device_stats(&self) -> Option<DeviceStats> {
         None
+    }
+    /// Outcomes of `n` granular chains (docs/SPEC.md §9) in order, chain k
+    /// built by `job(k)` only when it is about to run (`None`: its values
+    /// make no valid chain, status `invalid`). A backend without a chain
+    /// kernel refuses (a chain sweep is given one that has it).
+    fn run_chains(&self, n: usize, _job: ChainSource) -> anyhow::Result<Vec<ChainOutcome>> {
+        anyhow::bail!(
+            "the {} backend has no granular-chain kernel ({n} chains): run chain sweeps with --backend cpu",
+            self.name()
+        )
     }
     /// Get ready for scenes as `needs` describes, before the first one runs:
     /// a GPU backend compiles every pipeline they can use here, so a shader

@@ -4,96 +4,157 @@
 //! columns wide: final velocities for every bead up to
 //! [`crate::scene::MAX_BALLS`] beads, for the probe beads only above.
 
-use crate::engine::granular::{Beads, ChainOutcome};
+use super::row::{ColType, Field};
+use crate::engine::granular::{Beads, ChainOutcome, WallOutcome};
 use crate::scene::MAX_BALLS;
 
-/// The beads whose final velocity is a column.
-pub fn velocity_beads(b: &Beads) -> Vec<usize> {
-    if b.n <= MAX_BALLS {
-        (0..b.n).collect()
-    } else {
-        b.probes.clone()
-    }
+/// Which bead columns a chain table has: each probe's leading pulse, and
+/// the final velocities of `velocities` (every bead up to
+/// [`MAX_BALLS`] beads, the probes above).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Columns {
+    pub probes: Vec<usize>,
+    pub velocities: Vec<usize>,
 }
 
-/// Column names of a chain's row.
-pub fn header(b: &Beads) -> Vec<String> {
-    let mut h = vec!["status".to_string()];
-    for p in &b.probes {
-        for c in ["arrival", "peak_v", "peak_f"] {
-            h.push(format!("{c}_{p}"));
+/// The columns after the per-bead ones, in order.
+const TAIL: [&str; 16] = [
+    "pulse_speed",
+    "pulse_width",
+    "wall_left_peak_force",
+    "wall_left_impulse",
+    "wall_right_peak_force",
+    "wall_right_impulse",
+    "energy_reflected",
+    "energy_transmitted",
+    "energy_left",
+    "fragments",
+    "energy_error",
+    "momentum_error",
+    "max_overlap_ratio",
+    "t_end",
+    "steps",
+    "dt",
+];
+
+impl Columns {
+    /// The columns of one chain's row (`cradle run`).
+    pub fn of(b: &Beads) -> Columns {
+        Self::for_chains(b.probes.clone(), b.n)
+    }
+
+    /// The columns of a table of chains of at most `most_beads` beads with
+    /// these probe beads (a sweep's: the base scene's probes).
+    pub fn for_chains(probes: Vec<usize>, most_beads: usize) -> Columns {
+        let velocities = if most_beads <= MAX_BALLS {
+            (0..most_beads).collect()
+        } else {
+            probes.clone()
+        };
+        Columns { probes, velocities }
+    }
+
+    /// Column names (after a sweep's `id` and axis columns).
+    pub fn header(&self) -> Vec<String> {
+        let mut h = vec!["status".to_string()];
+        for p in &self.probes {
+            for c in ["arrival", "peak_v", "peak_f"] {
+                h.push(format!("{c}_{p}"));
+            }
         }
+        h.extend(self.velocities.iter().map(|i| format!("v_{i}")));
+        h.extend(TAIL.iter().map(|c| c.to_string()));
+        h
     }
-    h.extend(velocity_beads(b).iter().map(|i| format!("v_{i}")));
-    for c in [
-        "pulse_speed",
-        "pulse_width",
-        "wall_left_peak_force",
-        "wall_left_impulse",
-        "wall_right_peak_force",
-        "wall_right_impulse",
-        "energy_reflected",
-        "energy_transmitted",
-        "energy_left",
-        "fragments",
-        "energy_error",
-        "momentum_error",
-        "max_overlap_ratio",
-        "t_end",
-        "steps",
-        "dt",
-    ] {
-        h.push(c.to_string());
+
+    /// Column types, parallel to [`Columns::header`].
+    pub fn types(&self) -> Vec<ColType> {
+        use ColType::*;
+        let mut t = vec![Status];
+        t.extend(std::iter::repeat_n(
+            Num,
+            3 * self.probes.len() + self.velocities.len(),
+        ));
+        t.extend(TAIL.iter().map(|&c| match c {
+            "fragments" | "steps" => Int,
+            _ => Num,
+        }));
+        t
     }
-    h
+
+    /// The fields of a row in [`Columns::header`]'s order (NaN: missing).
+    /// A combination of sweep values that made no valid chain (status
+    /// `invalid`) has every other field missing; a `non_finite` run's state
+    /// is garbage, so only its `t_end`, `steps` and `dt` are written. A
+    /// velocity column of a bead the chain does not have (a `balls` axis)
+    /// is missing too.
+    pub fn emit(&self, o: &ChainOutcome, out: &mut dyn FnMut(Field)) {
+        use crate::engine::Status;
+        out(Field::Text(o.status.name()));
+        if o.status == Status::Invalid {
+            (1..self.header().len()).for_each(|_| out(Field::Null));
+            return;
+        }
+        let garbage = o.status == Status::NonFinite;
+        let num = |x: f64, out: &mut dyn FnMut(Field)| {
+            out(if garbage { Field::Null } else { Field::Num(x) })
+        };
+        for p in &o.probes {
+            num(p.arrival, out);
+            num(p.peak_velocity, out);
+            num(p.peak_force, out);
+        }
+        for &i in &self.velocities {
+            match o.v.get(i) {
+                Some(&v) => num(v, out),
+                None => out(Field::Null),
+            }
+        }
+        let wall = |w: &Option<WallOutcome>| {
+            w.as_ref()
+                .map_or((f64::NAN, f64::NAN), |w| (w.peak_force, w.impulse))
+        };
+        let (lp, li) = wall(&o.left_wall);
+        let (rp, ri) = wall(&o.right_wall);
+        for x in [
+            o.pulse_speed,
+            o.pulse_width,
+            lp,
+            li,
+            rp,
+            ri,
+            o.energy_reflected,
+            o.energy_transmitted,
+            o.energy_left,
+        ] {
+            num(x, out);
+        }
+        out(if garbage {
+            Field::Null
+        } else {
+            Field::Int(o.fragments as u64)
+        });
+        for x in [o.energy_error, o.momentum_error, o.max_overlap_ratio] {
+            num(x, out);
+        }
+        out(Field::Num(o.t_end));
+        out(Field::Int(o.steps));
+        out(Field::Num(o.dt));
+    }
 }
 
-/// The row's fields, in [`header`]'s order (NaN: empty).
+/// Column names of a chain's row (`cradle run --format csv`).
+pub fn header(b: &Beads) -> Vec<String> {
+    Columns::of(b).header()
+}
+
+/// The row's fields as text, in [`header`]'s order (NaN: empty).
 pub fn fields(b: &Beads, o: &ChainOutcome) -> Vec<String> {
+    let mut f = Vec::new();
     let mut s = String::new();
-    let mut num = |x: f64| {
-        super::row::num_into(x, &mut s);
-        s.clone()
-    };
-    let mut f = vec![o.status.name().to_string()];
-    for p in &o.probes {
-        f.push(num(p.arrival));
-        f.push(num(p.peak_velocity));
-        f.push(num(p.peak_force));
-    }
-    for i in velocity_beads(b) {
-        f.push(num(o.v[i]));
-    }
-    let wall = |w: &Option<crate::engine::granular::WallOutcome>| {
-        w.as_ref()
-            .map_or((f64::NAN, f64::NAN), |w| (w.peak_force, w.impulse))
-    };
-    let (lp, li) = wall(&o.left_wall);
-    let (rp, ri) = wall(&o.right_wall);
-    for x in [
-        o.pulse_speed,
-        o.pulse_width,
-        lp,
-        li,
-        rp,
-        ri,
-        o.energy_reflected,
-        o.energy_transmitted,
-        o.energy_left,
-    ] {
-        f.push(num(x));
-    }
-    f.push(o.fragments.to_string());
-    for x in [
-        o.energy_error,
-        o.momentum_error,
-        o.max_overlap_ratio,
-        o.t_end,
-    ] {
-        f.push(num(x));
-    }
-    f.push(o.steps.to_string());
-    f.push(num(o.dt));
+    Columns::of(b).emit(o, &mut |x| {
+        f.push(super::row::field_text(x, &mut s).to_string())
+    });
     f
 }
 

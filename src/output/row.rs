@@ -317,22 +317,25 @@ pub fn emit(
     scratch: &mut String,
     out: &mut dyn FnMut(&str),
 ) {
-    emit_fields(id, axes, o, shape, &mut |f| {
-        use std::fmt::Write;
-        match f {
-            Field::Int(x) => {
-                scratch.clear();
-                let _ = write!(scratch, "{x}");
-                out(scratch)
-            }
-            Field::Num(x) => {
-                num_into(x, scratch);
-                out(scratch)
-            }
-            Field::Text(t) => out(t),
-            Field::Null => out(""),
+    emit_fields(id, axes, o, shape, &mut |f| out(field_text(f, scratch)));
+}
+
+/// A field as the CSV writes it (text in `scratch` for numbers).
+pub fn field_text<'a>(f: Field<'a>, scratch: &'a mut String) -> &'a str {
+    use std::fmt::Write;
+    match f {
+        Field::Int(x) => {
+            scratch.clear();
+            let _ = write!(scratch, "{x}");
+            scratch
         }
-    });
+        Field::Num(x) => {
+            num_into(x, scratch);
+            scratch
+        }
+        Field::Text(t) => t,
+        Field::Null => "",
+    }
 }
 
 /// The fields of one row, in order and typed, to `out`.

@@ -5,7 +5,8 @@
 use serde::Serialize;
 
 use crate::scene::{
-    DampingSpec, LaunchSpec, PendulumSpec, PerBall, Scene, SceneSpec, SolverSpec, StopSpec,
+    DampingSpec, ImpuritySpec, LaunchSpec, PatternSpec, PendulumSpec, PerBall, PulseSpec, Scene,
+    SceneSpec, SolverSpec, StopSpec, TaperSpec, WallsSpec,
 };
 
 /// Most values one axis may have.
@@ -27,6 +28,9 @@ pub enum Kind {
     Integer,
     /// A plain number.
     Number,
+    /// One element of a granular chain's `[pattern]` period; index required
+    /// (`pattern.radius[1]`), below the base scene's period length.
+    Pattern,
 }
 
 /// Parameters a sweep axis may name, with their kind.
@@ -50,6 +54,24 @@ pub const PARAMS: &[(&str, Kind)] = &[
     ("duration", Kind::Number),
     ("tolerance", Kind::Number),
     ("dt", Kind::Number),
+    // Granular chains (docs/SPEC.md §9): the tables' keys by dotted name.
+    ("walls.precompression", Kind::Number),
+    ("walls.young_modulus", Kind::Number),
+    ("walls.poisson_ratio", Kind::Number),
+    ("pulse.bead", Kind::Integer),
+    ("pulse.force", Kind::Number),
+    ("pulse.duration", Kind::Number),
+    ("pattern.radius", Kind::Pattern),
+    ("pattern.density", Kind::Pattern),
+    ("pattern.mass", Kind::Pattern),
+    ("pattern.young_modulus", Kind::Pattern),
+    ("pattern.poisson_ratio", Kind::Pattern),
+    ("taper.ratio", Kind::Number),
+    ("impurity.radius", Kind::Number),
+    ("impurity.density", Kind::Number),
+    ("impurity.mass", Kind::Number),
+    ("impurity.young_modulus", Kind::Number),
+    ("impurity.poisson_ratio", Kind::Number),
 ];
 
 /// A parsed `param` string: name, kind and optional index.
@@ -85,11 +107,16 @@ impl Param {
             (Kind::Velocity, None) => {
                 Err("`velocity[i]`: the velocity of ball i needs an index".into())
             }
-            (Kind::PerBall | Kind::PerContact | Kind::Velocity, _) | (_, None) => Ok(Param {
-                name: name.to_string(),
-                kind,
-                index,
-            }),
+            (Kind::Pattern, None) => Err(format!(
+                "`{name}[i]`: element i of the [pattern] period needs an index"
+            )),
+            (Kind::PerBall | Kind::PerContact | Kind::Velocity | Kind::Pattern, _) | (_, None) => {
+                Ok(Param {
+                    name: name.to_string(),
+                    kind,
+                    index,
+                })
+            }
             (_, Some(_)) => Err(format!("`{name}` takes no index")),
         }
     }
@@ -102,10 +129,20 @@ impl Param {
         fn group(p: &Param) -> &str {
             match p.name.as_str() {
                 "density" | "mass" => "mass",
+                "pattern.density" | "pattern.mass" => "pattern.mass",
+                "impurity.density" | "impurity.mass" => "impurity.mass",
                 "velocity" | "launch.height" | "launch.velocity" => "velocity",
                 "tolerance" | "dt" => "step",
                 n => n,
             }
+        }
+        // A [pattern] array replaces the whole chain's values of its key:
+        // an axis of that key would label values never used.
+        let plain = |p: &Param| group(p).strip_prefix("pattern.").map(str::to_string);
+        if plain(self).as_deref() == Some(group(other))
+            || plain(other).as_deref() == Some(group(self))
+        {
+            return true;
         }
         if group(self) != group(other) {
             // launch.balls decides which balls a launch speed applies to; a
@@ -125,12 +162,40 @@ impl Param {
         }
     }
 
-    /// Largest index this parameter allows in a chain of `n` balls.
-    pub fn index_limit(&self, n: usize) -> Option<usize> {
+    /// Largest index this parameter allows in a chain of `n` balls
+    /// (`spec`: the base scene as written, whose `[pattern]` arrays bound a
+    /// `pattern.*` index).
+    pub fn index_limit(&self, n: usize, spec: &SceneSpec) -> Option<usize> {
         match self.kind {
             Kind::PerBall | Kind::Velocity => Some(n),
             Kind::PerContact => Some(n - 1),
+            Kind::Pattern => Some(
+                spec.pattern
+                    .as_ref()
+                    .and_then(|p| pattern_slot(p, &self.name))
+                    .map_or(0, Vec::len),
+            ),
             _ => None,
+        }
+    }
+
+    /// Whether this parameter's index exists in a chain of `n` balls (`spec`
+    /// as for [`Param::index_limit`]); `Err`: what is allowed.
+    pub fn check_index(&self, n: usize, spec: &SceneSpec) -> Result<(), String> {
+        let (Some(i), Some(lim)) = (self.index, self.index_limit(n, spec)) else {
+            return Ok(());
+        };
+        match (i < lim, self.kind) {
+            (true, _) => Ok(()),
+            (false, Kind::Pattern) if lim == 0 => Err(format!(
+                "an element of an array `{}` in the base scene's [pattern] table (it has none)",
+                self.name.trim_start_matches("pattern.")
+            )),
+            (false, Kind::Pattern) => Err(format!(
+                "an index in 0 ..= {} (the base scene's [pattern] period)",
+                lim - 1
+            )),
+            (false, _) => Err(format!("an index in 0 ..= {} for {n} balls", lim - 1)),
         }
     }
 }
@@ -411,8 +476,47 @@ pub fn apply(spec: &mut SceneSpec, base: &Scene, p: &Param, value: &Value) {
             s.dt = Some(num);
             s.tolerance = None;
         }
+        "walls.precompression" => walls(spec).precompression = Some(num),
+        "walls.young_modulus" => walls(spec).young_modulus = Some(num),
+        "walls.poisson_ratio" => walls(spec).poisson_ratio = Some(num),
+        "pulse.bead" => pulse(spec).bead = Some(num as i64),
+        "pulse.force" => pulse(spec).force = Some(num),
+        "pulse.duration" => pulse(spec).duration = Some(num),
+        "taper.ratio" => spec.taper.get_or_insert_with(TaperSpec::default).ratio = Some(num),
+        "impurity.radius" => impurity(spec).radius = Some(num),
+        "impurity.density" => impurity(spec).density = Some(num),
+        "impurity.mass" => {
+            let i = impurity(spec);
+            i.density = None;
+            i.mass = Some(num)
+        }
+        "impurity.young_modulus" => impurity(spec).young_modulus = Some(num),
+        "impurity.poisson_ratio" => impurity(spec).poisson_ratio = Some(num),
+        name if p.kind == Kind::Pattern => {
+            let pat = spec.pattern.get_or_insert_with(PatternSpec::default);
+            if let Some(v) = pattern_slot_mut(pat, name) {
+                let v = v.get_or_insert_with(Vec::new);
+                let i = p.index.unwrap_or(0);
+                if v.len() <= i {
+                    v.resize(i + 1, f64::NAN);
+                }
+                v[i] = num;
+            }
+        }
         other => unreachable!("parameter {other} passed Param::parse"),
     }
+}
+
+fn walls(spec: &mut SceneSpec) -> &mut WallsSpec {
+    spec.walls.get_or_insert_with(WallsSpec::default)
+}
+
+fn pulse(spec: &mut SceneSpec) -> &mut PulseSpec {
+    spec.pulse.get_or_insert_with(PulseSpec::default)
+}
+
+fn impurity(spec: &mut SceneSpec) -> &mut ImpuritySpec {
+    spec.impurity.get_or_insert_with(ImpuritySpec::default)
 }
 
 /// Set a per-ball quantity; a quantity the scene did not write starts from
@@ -424,6 +528,29 @@ fn set(slot: &mut Option<PerBall>, index: Option<usize>, value: f64, n: usize, f
         _ => PerBall::List(fallback.to_vec()),
     });
     pb.set(index, value, n);
+}
+
+/// The `[pattern]` array a `pattern.*` parameter names.
+fn pattern_slot<'a>(p: &'a PatternSpec, name: &str) -> Option<&'a Vec<f64>> {
+    match name {
+        "pattern.radius" => p.radius.as_ref(),
+        "pattern.density" => p.density.as_ref(),
+        "pattern.mass" => p.mass.as_ref(),
+        "pattern.young_modulus" => p.young_modulus.as_ref(),
+        "pattern.poisson_ratio" => p.poisson_ratio.as_ref(),
+        _ => None,
+    }
+}
+
+fn pattern_slot_mut<'a>(p: &'a mut PatternSpec, name: &str) -> Option<&'a mut Option<Vec<f64>>> {
+    match name {
+        "pattern.radius" => Some(&mut p.radius),
+        "pattern.density" => Some(&mut p.density),
+        "pattern.mass" => Some(&mut p.mass),
+        "pattern.young_modulus" => Some(&mut p.young_modulus),
+        "pattern.poisson_ratio" => Some(&mut p.poisson_ratio),
+        _ => None,
+    }
 }
 
 #[cfg(test)]

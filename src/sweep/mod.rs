@@ -3,6 +3,7 @@
 //! produced one id at a time, never materialised as a whole.
 
 pub mod axis;
+pub mod chains;
 pub mod design;
 mod parse;
 pub mod pipeline;
@@ -22,8 +23,21 @@ use crate::output::row::{ColType, Field};
 use crate::scene::{Scene, SceneSpec};
 pub use axis::{Param, Value, Values};
 
-/// Why a sweep refuses a granular chain (docs/SPEC.md §9) in this version.
-pub const CHAIN_SWEEPS: &str = "a cradle of at most 64 balls: granular chains (more balls, [walls], [pulse], [probes], [record], [pattern], [taper], [impurity]) run one at a time with `cradle run` in this version; sweeping them is not built yet";
+/// Why a value of an axis is refused when it makes a cradle out of a chain
+/// sweep's base scene, or a chain out of a cradle's (docs/SPEC.md §9): a
+/// table has either the cradle's columns or the chain's.
+pub fn mixed_sweep(base_is_chain: bool) -> String {
+    let (base, value) = if base_is_chain {
+        ("a granular chain", "a cradle")
+    } else {
+        ("a cradle", "a granular chain")
+    };
+    format!(
+        "a scene like the base scene: the base scene is {base} and this value makes {value} \
+         (a sweep's scenes are all cradles or all granular chains; a chain of at most 64 beads \
+         is one when it has [walls], [pulse], [probes], [record], [pattern], [taper] or [impurity])"
+    )
+}
 
 /// Most scenes one sweep may have (refused before anything is allocated).
 pub const MAX_SCENES: u64 = 1_000_000_000;
@@ -104,6 +118,10 @@ pub struct Sweep {
     /// A grid, a point list or a sampling design.
     #[serde(skip_serializing_if = "Layout::is_grid")]
     pub layout: Layout,
+    /// A sweep of granular chains (docs/SPEC.md §9): its bead columns;
+    /// `None` for cradles.
+    #[serde(skip)]
+    pub chains: Option<crate::output::chain_row::Columns>,
 }
 
 impl Sweep {
@@ -283,7 +301,15 @@ impl Sweep {
 
     /// The type of every column, parallel to the header.
     pub fn column_types(&self) -> Vec<ColType> {
-        crate::output::row::column_types(&self.axis_types(), self.shape())
+        match &self.chains {
+            Some(c) => {
+                let mut t = vec![ColType::Int];
+                t.extend(self.axis_types());
+                t.extend(c.types());
+                t
+            }
+            None => crate::output::row::column_types(&self.axis_types(), self.shape()),
+        }
     }
 
     pub fn axis_names(&self) -> Vec<String> {

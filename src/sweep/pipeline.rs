@@ -24,9 +24,10 @@ use std::time::{Duration, Instant};
 
 use anyhow::Result;
 
-use super::session::{Options, SweepRow};
+use super::session::{Options, RowOutcome, SweepRow};
 use super::Sweep;
 use crate::backend::{run_with_estimate, Backend, DeviceStats, Job};
+use crate::engine::granular::ChainOutcome;
 use crate::engine::Status;
 use crate::output::parquet_file::{Columns, Segment, SEGMENT_ROWS};
 use crate::output::partial::{Partial, TableFormat};
@@ -83,6 +84,49 @@ impl Stages {
             });
         }
         j
+    }
+}
+
+/// A batch's outcomes: cradles' or chains'.
+enum Outcomes {
+    Cradle(Vec<crate::engine::Outcome>),
+    Chain(Vec<ChainOutcome>),
+}
+
+impl Outcomes {
+    fn len(&self) -> usize {
+        match self {
+            Outcomes::Cradle(v) => v.len(),
+            Outcomes::Chain(v) => v.len(),
+        }
+    }
+
+    fn status(&self, k: usize) -> Status {
+        match self {
+            Outcomes::Cradle(v) => v[k].status,
+            Outcomes::Chain(v) => v[k].status,
+        }
+    }
+
+    /// Row `k` (scene `id`) of the batch, field by field: id, axes, outcome.
+    fn emit(&self, sweep: &Sweep, id: u64, k: usize, out: &mut dyn FnMut(row::Field)) {
+        let axes = |f: &mut dyn FnMut(row::Field)| sweep.emit_axis_values(id, f);
+        match (self, &sweep.chains) {
+            (Outcomes::Chain(v), Some(cols)) => {
+                out(row::Field::Int(id));
+                axes(out);
+                cols.emit(&v[k], out);
+            }
+            (Outcomes::Cradle(v), _) => row::emit_fields(id, axes, &v[k], sweep.shape(), out),
+            (Outcomes::Chain(_), None) => unreachable!("chain outcomes come from chain sweeps"),
+        }
+    }
+
+    fn into_rows(self) -> Vec<RowOutcome> {
+        match self {
+            Outcomes::Cradle(v) => v.into_iter().map(RowOutcome::Cradle).collect(),
+            Outcomes::Chain(v) => v.into_iter().map(RowOutcome::Chain).collect(),
+        }
     }
 }
 
@@ -167,13 +211,27 @@ fn batch(
     st: &mut Stages,
 ) -> Result<Done> {
     let (mut t, mut t1) = (Instant::now(), Instant::now());
-    let mut work = || -> Result<Vec<crate::engine::Outcome>> {
+    let mut work = || -> Result<Outcomes> {
         t = Instant::now();
+        if sweep.chains.is_some() {
+            // Chains are built by the worker that runs them (memory: one
+            // chain per worker, not the batch's); building counts as
+            // integration.
+            t1 = t;
+            let job = |k: usize| sweep.chain_job(ids.at(first + k as u64), &opts.overrides);
+            return Ok(Outcomes::Chain(
+                backend.run_chains((end - first) as usize, &job)?,
+            ));
+        }
         let jobs = (first..end)
             .map(|p| sweep.job(ids.at(p), &opts.overrides))
             .collect::<Result<Vec<Job>, _>>()?;
         t1 = Instant::now();
-        run_with_estimate(backend, &jobs, opts.error_estimate)
+        Ok(Outcomes::Cradle(run_with_estimate(
+            backend,
+            &jobs,
+            opts.error_estimate,
+        )?))
     };
     // A backend that takes few calls at once (a GPU): the lanes waiting for
     // it build their jobs only once let in, so no more than that many
@@ -185,54 +243,50 @@ fn batch(
         work()?
     };
     let t2 = Instant::now();
-    let shape = sweep.shape();
-    let ok = outcomes.iter().filter(|o| o.status == Status::Ok).count() as u64;
+    let n = outcomes.len();
+    let ok = (0..n).filter(|&k| outcomes.status(k) == Status::Ok).count() as u64;
+    let row = |k: usize, out: &mut dyn FnMut(row::Field)| {
+        outcomes.emit(sweep, ids.at(first + k as u64), k, out)
+    };
     let rows = match format {
         TableFormat::Csv => {
-            let mut bytes = Vec::with_capacity(256 * outcomes.len());
+            let mut bytes = Vec::with_capacity(256 * n);
             let mut scratch = String::with_capacity(32);
-            for (p, o) in (first..).zip(&outcomes) {
-                let i = ids.at(p);
-                let axes = |f: &mut dyn FnMut(row::Field)| sweep.emit_axis_values(i, f);
+            for k in 0..n {
                 let mut sep = false;
-                row::emit(i, axes, o, shape, &mut scratch, &mut |field| {
+                row(k, &mut |field| {
                     if sep {
                         bytes.push(b',');
                     }
                     sep = true;
-                    row::push_csv_field(&mut bytes, field);
+                    row::push_csv_field(&mut bytes, row::field_text(field, &mut scratch));
                 });
                 bytes.push(b'\n');
             }
             Rows::Csv(bytes)
         }
         TableFormat::Parquet(schema) => {
-            let mut cols = Columns::new(schema, &sweep.column_types(), outcomes.len());
-            for (p, o) in (first..).zip(&outcomes) {
-                let i = ids.at(p);
-                let axes = |f: &mut dyn FnMut(row::Field)| sweep.emit_axis_values(i, f);
-                row::emit_fields(i, axes, o, shape, &mut |field| cols.push(field));
+            let mut cols = Columns::new(schema, &sweep.column_types(), n);
+            for k in 0..n {
+                row(k, &mut |field| cols.push(field));
             }
             Rows::Arrow(cols.finish()?)
         }
     };
     let picked = match column {
-        Some(k) => (first..)
-            .zip(&outcomes)
-            .map(|(p, o)| {
-                let i = ids.at(p);
-                let axes = |f: &mut dyn FnMut(row::Field)| sweep.emit_axis_values(i, f);
+        Some(c) => (0..n)
+            .map(|k| {
                 let (mut at, mut value) = (0, Cell::Null);
-                row::emit_fields(i, axes, o, shape, &mut |field| {
-                    if at == k {
+                row(k, &mut |field| {
+                    if at == c {
                         value = Cell::from(field);
                     }
                     at += 1;
                 });
                 Picked {
-                    id: i,
+                    id: ids.at(first + k as u64),
                     value,
-                    ok: o.status == Status::Ok,
+                    ok: outcomes.status(k) == Status::Ok,
                 }
             })
             .collect(),
@@ -241,7 +295,7 @@ fn batch(
     // The outcomes are not needed past here: a row callback takes them.
     let typed = match opts.on_row {
         Some(_) => (first..)
-            .zip(outcomes)
+            .zip(outcomes.into_rows())
             .map(|(p, o)| sweep.typed_row(ids.at(p), o))
             .collect(),
         None => vec![],
@@ -290,6 +344,9 @@ pub fn stream(
 ) -> Result<(u64, u64, Partial, Stages)> {
     let (progress, save) = (hooks.progress, hooks.save);
     let mut batch_size = backend.batch_size().max(1);
+    if sweep.chains.is_some() {
+        batch_size = sweep.chain_batch(batch_size);
+    }
     if let TableFormat::Parquet(_) = out.format {
         // A power of two ≤ a segment: no batch straddles two segments.
         batch_size = (1u64 << batch_size.ilog2()).min(SEGMENT_ROWS);

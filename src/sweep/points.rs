@@ -209,16 +209,14 @@ fn check_row(
     }
     let n = s.balls.map_or(base.n, |b| b as usize);
     for (k, p) in params.iter().enumerate() {
-        if let (Some(i), Some(lim)) = (p.index, p.index_limit(n)) {
-            if i >= lim {
-                return Err(invalid(
-                    path,
-                    line,
-                    &header[k],
-                    format!("index {i}"),
-                    format!("an index in 0 ..= {} for {n} balls", lim - 1),
-                ));
-            }
+        if let Err(allowed) = p.check_index(n, spec) {
+            return Err(invalid(
+                path,
+                line,
+                &header[k],
+                format!("index {}", p.index.unwrap_or(0)),
+                allowed,
+            ));
         }
     }
     if let Err(e) = s.validate() {

@@ -12,6 +12,7 @@ use serde::{Deserialize, Serialize};
 
 use super::Sweep;
 use crate::backend::{Backend, Job};
+use crate::engine::granular::ChainOutcome;
 use crate::engine::{Chain, Outcome, Overrides, Solver};
 use crate::error::InputError;
 use crate::output::lock::OutputLock;
@@ -36,7 +37,40 @@ pub type OnProgress = Arc<dyn Fn(Progress) + Send + Sync>;
 pub struct SweepRow {
     pub id: u64,
     pub params: Vec<Cell>,
-    pub outcome: Outcome,
+    pub outcome: RowOutcome,
+}
+
+/// A row's outcome: a cradle's, or a granular chain's (docs/SPEC.md §9).
+#[derive(Clone, Debug)]
+#[allow(clippy::large_enum_variant)]
+pub enum RowOutcome {
+    Cradle(Outcome),
+    Chain(ChainOutcome),
+}
+
+impl RowOutcome {
+    /// The cradle's outcome (`None` for a chain).
+    pub fn cradle(&self) -> Option<&Outcome> {
+        match self {
+            RowOutcome::Cradle(o) => Some(o),
+            RowOutcome::Chain(_) => None,
+        }
+    }
+
+    /// The chain's outcome (`None` for a cradle).
+    pub fn chain(&self) -> Option<&ChainOutcome> {
+        match self {
+            RowOutcome::Chain(o) => Some(o),
+            RowOutcome::Cradle(_) => None,
+        }
+    }
+
+    pub fn status(&self) -> crate::engine::Status {
+        match self {
+            RowOutcome::Cradle(o) => o.status,
+            RowOutcome::Chain(o) => o.status,
+        }
+    }
 }
 
 /// Called with every row once it is written, in the order the output holds
@@ -124,7 +158,15 @@ impl Sweep {
     }
 
     pub fn header(&self) -> Vec<String> {
-        row::header(&self.axis_names(), self.shape())
+        match &self.chains {
+            Some(c) => {
+                let mut h = vec!["id".to_string()];
+                h.extend(self.axis_names());
+                h.extend(c.header());
+                h
+            }
+            None => row::header(&self.axis_names(), self.shape()),
+        }
     }
 
     /// The Arrow schema of this sweep's table (its Parquet output).
@@ -133,7 +175,7 @@ impl Sweep {
     }
 
     /// Scene `id`'s row, typed.
-    pub fn typed_row(&self, id: u64, outcome: Outcome) -> SweepRow {
+    pub fn typed_row(&self, id: u64, outcome: RowOutcome) -> SweepRow {
         let mut params = Vec::with_capacity(self.axes.len());
         self.emit_axis_values(id, &mut |f| params.push(Cell::from(f)));
         SweepRow {

@@ -91,6 +91,7 @@ impl Sweep {
         let costs: Vec<f64> = ids
             .par_iter()
             .map(|&id| match self.job(id, o) {
+                _ if self.chains.is_some() => self.chain_cost(id, o),
                 Ok(Job::Run { chain, solver }) => Solver::expected_cost(&solver, &chain),
                 _ => 1.0,
             })

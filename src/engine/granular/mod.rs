@@ -282,6 +282,27 @@ pub fn nesterenko_speed(k: f64, m: f64, a: f64, v_m: f64) -> f64 {
     (16.0f64 / 25.0).powf(0.2) * c.powf(0.8) * v_m.powf(0.2)
 }
 
+/// What a chain run accepts of a resolved solver: the hertz model (the
+/// comparison models are for cradles) in f64 (the chain engine's only
+/// precision so far): anything else is refused, never silently replaced.
+pub fn check_solver(solver: &Solver) -> Result<(), crate::error::InputError> {
+    if solver.model != crate::engine::Model::Hertz {
+        return Err(crate::error::flag(
+            "--model",
+            solver.model.name(),
+            "hertz for a granular chain (the comparison models are for cradles)",
+        ));
+    }
+    if solver.precision != crate::scene::Precision::F64 {
+        return Err(crate::error::flag(
+            "--precision",
+            solver.precision.name(),
+            "f64 for a granular chain (the chain engine runs in f64 only so far; a scene's [solver] precision counts too)",
+        ));
+    }
+    Ok(())
+}
+
 /// The step, substep weights and end of one chain run.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Plan {

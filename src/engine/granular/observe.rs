@@ -223,3 +223,29 @@ pub struct ChainOutcome {
     /// The step (s).
     pub dt: f64,
 }
+
+impl ChainOutcome {
+    /// The outcome of a combination of sweep values that made no valid
+    /// chain: status `invalid`, nothing measured.
+    pub fn invalid() -> ChainOutcome {
+        ChainOutcome {
+            status: crate::engine::Status::Invalid,
+            probes: vec![],
+            pulse_speed: f64::NAN,
+            pulse_width: f64::NAN,
+            left_wall: None,
+            right_wall: None,
+            energy_reflected: f64::NAN,
+            energy_transmitted: f64::NAN,
+            energy_left: f64::NAN,
+            fragments: 0,
+            energy_error: f64::NAN,
+            momentum_error: f64::NAN,
+            max_overlap_ratio: f64::NAN,
+            v: vec![],
+            t_end: f64::NAN,
+            steps: 0,
+            dt: f64::NAN,
+        }
+    }
+}

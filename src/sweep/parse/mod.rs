@@ -266,25 +266,25 @@ impl Ctx<'_> {
         for (k, (line, a)) in axes.iter().enumerate() {
             for v in &samples[k] {
                 let n = if balls_axis.is_some() { width } else { base.n };
-                if let (Some(i), Some(lim)) = (a.param.index, a.param.index_limit(n)) {
-                    if i >= lim {
-                        return Err(cx.invalid(
-                            *line,
-                            &a.name,
-                            format!("index {i}"),
-                            format!("an index in 0 ..= {} for {} balls", lim - 1, n),
-                        ));
-                    }
-                }
-                let mut spec = scene_spec.clone();
-                axis::apply(&mut spec, base, &a.param, v);
-                if spec.validate().is_ok_and(|s| s.chain.is_some()) {
+                if let Err(allowed) = a.param.check_index(n, scene_spec) {
                     return Err(cx.invalid(
                         *line,
                         &a.name,
-                        v.to_string(),
-                        crate::sweep::CHAIN_SWEEPS.into(),
+                        format!("index {}", a.param.index.unwrap_or(0)),
+                        allowed,
                     ));
+                }
+                let mut spec = scene_spec.clone();
+                axis::apply(&mut spec, base, &a.param, v);
+                if let Ok(s) = spec.validate() {
+                    if s.chain.is_some() != base.chain.is_some() {
+                        return Err(cx.invalid(
+                            *line,
+                            &a.name,
+                            v.to_string(),
+                            crate::sweep::mixed_sweep(base.chain.is_some()),
+                        ));
+                    }
                 }
                 // A value may need another axis' value to be valid (glue "=---"
                 // with two balls launched): it is refused only when no single
@@ -338,14 +338,6 @@ impl Sweep {
         let mut inputs = Vec::new();
         let scene_spec = cx.scene(&raw, dir, &mut inputs)?;
         let base = scene_spec.validate()?;
-        if base.chain.is_some() {
-            return Err(cx.invalid(
-                None,
-                "scene",
-                scene_spec.origin.clone(),
-                crate::sweep::CHAIN_SWEEPS.into(),
-            ));
-        }
         let mut layout = cx.sample(&raw)?.unwrap_or(Layout::Grid);
         let mut axes = Vec::new();
         if let Some((file, path, from_points)) = cx.points(&raw, dir, &scene_spec, &base)? {
@@ -382,7 +374,13 @@ impl Sweep {
             width,
             refine: None,
             layout,
+            chains: None,
         };
+        sweep.chains = sweep
+            .base
+            .chain
+            .as_ref()
+            .map(|c| crate::output::chain_row::Columns::for_chains(c.probes.clone(), width));
         if let Some(r) = raw.refine {
             let line = Some(src.line(r.span().start));
             if sweep.layout != Layout::Grid {
@@ -406,7 +404,7 @@ impl Sweep {
         r: RawRefine,
         invalid: &dyn Fn(&str, String, String) -> InputError,
     ) -> Result<refine::RefineSpec, InputError> {
-        let header = crate::output::row::header(&self.axis_names(), self.shape());
+        let header = self.header();
         let types = self.column_types();
         let Some(column) = r.column else {
             return Err(invalid(
