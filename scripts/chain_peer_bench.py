@@ -132,7 +132,7 @@ def main():
     with open(pts, "w") as f:
         f.write("launch.velocity,duration\n")
         for v0, t in zip(vs, ts):
-            f.write(f"{v0!r},{t!r}\n")
+            f.write(f"{float(v0)!r},{float(t)!r}\n")
     scene(os.path.join(TMP, "base.toml"), False)
     sw = os.path.join(TMP, "sweep.toml")
     with open(sw, "w") as f:

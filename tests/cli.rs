@@ -528,6 +528,30 @@ fn a_granular_chain_runs_with_its_probes_walls_and_record() {
     for (i, t) in times[..times.len() - 1].iter().enumerate() {
         assert!((t - i as f64 * 1e-4).abs() < 1e-15, "row {i} at {t}");
     }
+    // A chain's trace plots: lines for a few beads, images for many.
+    let png = dir.path().join("t.png");
+    success(&["plot", "--trace", t, "--out", png.to_str().unwrap()]);
+    assert_eq!(&fs::read(&png).unwrap()[..4], b"\x89PNG");
+    let all: Vec<String> = (0..100).map(|i| i.to_string()).collect();
+    let long = write(
+        &dir,
+        "long.toml",
+        &format!(
+            "balls = 100\nradius = 0.005\n[walls]\nright = true\n[launch]\nballs = 1\nvelocity = 0.1\n\
+             [record]\nbeads = [{}]\nevery = 2e-5\n",
+            all.join(", ")
+        ),
+    );
+    let long_trace = dir.path().join("long.csv");
+    let lt = long_trace.to_str().unwrap();
+    success(&["run", &long, "--trace", lt]);
+    let svg = dir.path().join("long.svg");
+    success(&["plot", "--trace", lt, "--out", svg.to_str().unwrap()]);
+    let text = fs::read_to_string(&svg).unwrap();
+    assert!(text.contains("long: 100 beads recorded"), "title");
+    assert!(text.contains("velocity v_b (m/s)") && text.contains("force of contact (b, b+1) (N)"));
+    // The striker's 0.1 m/s is the largest speed: the scale's full red is in the image.
+    assert!(text.contains("#B2182B"), "no saturated cell");
     // --trace-dt must agree with [record] every; a chain sweep refuses the
     // GPU backend (no chain kernel yet) and the settings it cannot honour.
     let e = bad_input(&["run", &scene, "--trace", t, "--trace-dt", "1e-5"]);

@@ -14,7 +14,10 @@
 //! - `GET /api/scene?id=N`: that scene run again by the CPU engine from the
 //!   sweep named in the sidecar: its outcome, its trace (at most
 //!   [`MAX_TRACE_ROWS`] rows, said in the reply) and its outcome under the
-//!   `hard-sphere` and `closure` models.
+//!   `hard-sphere` and `closure` models; for a sweep of granular chains,
+//!   the chain's outcome columns and its bead histories (`histories`: beads,
+//!   t, v and contact force per bead, at most [`HISTORY_BEADS`] beads ×
+//!   2·[`HISTORY_ROWS`] rows) for a space-time image.
 //! - `GET /api/scene.toml?id=N`: the scene as a scene TOML file.
 //!
 //! Every parameter is checked; a bad request gets a JSON error (400/404)
@@ -44,6 +47,9 @@ use crate::sweep::Sweep;
 
 /// Most trace rows a scene reply carries.
 pub const MAX_TRACE_ROWS: f64 = 2000.0;
+/// Most beads and (half the most) rows of a chain scene's histories.
+pub const HISTORY_BEADS: usize = 200;
+pub const HISTORY_ROWS: usize = 400;
 /// Scene runs at the same time.
 pub const MAX_RUNS: usize = 2;
 /// Longest a scene run may take (s).
@@ -375,8 +381,52 @@ async fn row(State(d): State<Arc<Data>>, Query(q): Query<HashMap<String, String>
     Json(json!({"id": id, "row": fields})).into_response()
 }
 
-/// Run scene `id` of the sweep: outcome, trace text, the other models.
+/// Run chain scene `id` of a chain sweep again (the chain engine, the
+/// row's own step): its row's outcome columns and its bead histories for a
+/// space-time image (at most [`HISTORY_BEADS`] beads × 2·[`HISTORY_ROWS`]
+/// rows, as f32).
+fn run_chain_scene(sweep: &Sweep, id: u64) -> Result<Json_> {
+    use crate::engine::granular::{self, history::History};
+    let Some(job) = sweep.chain_job(id, &Default::default())? else {
+        anyhow::bail!("scene {id} is not a valid chain (status invalid)");
+    };
+    let cols = sweep.chains.as_ref().context("a chain sweep")?;
+    let mut plan = job.plan.clone();
+    // Every step offered to the history, which keeps evenly spaced rows:
+    // the step is the sweep row's own, so the outcome is the row's.
+    plan.every = Some(plan.h);
+    let mut h = History::new(&job.beads, HISTORY_BEADS, HISTORY_ROWS);
+    let o = granular::run(&job.beads, &plan, &mut h);
+    let mut outcome = vec![];
+    let (names, mut k, mut s) = (cols.header(), 0, String::new());
+    cols.emit(&o, &mut |f| {
+        outcome.push(json!([names[k], crate::output::row::field_text(f, &mut s)]));
+        k += 1;
+    });
+    let f32s = |rows: &[Vec<f64>]| -> Vec<Vec<f32>> {
+        rows.iter()
+            .map(|r| r.iter().map(|&x| x as f32).collect())
+            .collect()
+    };
+    Ok(json!({
+        "id": id,
+        "outcome": outcome,
+        "beads": job.beads.n,
+        "histories": {
+            "beads": h.beads,
+            "t": h.t,
+            "v": f32s(&h.v),
+            "f": f32s(&h.f),
+        },
+    }))
+}
+
+/// Run scene `id` of the sweep: outcome, trace text, the other models (a
+/// chain sweep's scene: [`run_chain_scene`]).
 fn run_scene(sweep: &Sweep, id: u64) -> Result<Json_> {
+    if sweep.chains.is_some() {
+        return run_chain_scene(sweep, id);
+    }
     let job = sweep.job(id, &Default::default())?;
     let crate::backend::Job::Run { chain, solver } = job else {
         anyhow::bail!("scene {id} is not a valid scene (status invalid)");

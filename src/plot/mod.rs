@@ -4,6 +4,7 @@
 
 pub mod data;
 pub mod heatmap;
+pub mod spacetime;
 pub mod trace;
 
 use std::path::Path;

@@ -23,20 +23,69 @@ struct Trace {
     t: Vec<f64>,
     x: Vec<Vec<f64>>,
     v: Vec<Vec<f64>>,
+    /// Each line's ball (bead) number.
+    beads: Vec<usize>,
     spacing: f64,
+}
+
+/// The beads of a trace's `prefix` columns (`x_3` → 3), in column order,
+/// with their column indices.
+fn bead_columns(header: &[String], prefix: &str) -> Vec<(usize, usize)> {
+    header
+        .iter()
+        .enumerate()
+        .filter_map(|(c, h)| Some((h.strip_prefix(prefix)?.parse().ok()?, c)))
+        .collect()
 }
 
 pub fn plot(input: &Path, title: Option<&str>, out: &Path) -> Result<()> {
     fonts();
     super::Format::of(out)?;
     let table = Table::read(input)?;
-    let n = table.header.iter().filter(|h| h.starts_with("x_")).count();
-    if n == 0 || table.header.len() != 1 + 2 * n || table.header[0] != "t" {
+    let xs = bead_columns(&table.header, "x_");
+    let vs = bead_columns(&table.header, "v_");
+    let fs = bead_columns(&table.header, "f_");
+    let walls = table
+        .header
+        .iter()
+        .filter(|h| h.starts_with("f_wall_"))
+        .count();
+    let ascending = xs.windows(2).all(|w| w[0].0 < w[1].0);
+    let same_beads = xs.iter().map(|b| b.0).eq(vs.iter().map(|b| b.0));
+    if xs.is_empty()
+        || table.header[0] != "t"
+        || !ascending
+        || !same_beads
+        || table.header.len() != 1 + xs.len() + vs.len() + fs.len() + walls
+    {
         return Err(InputError::Data {
             path: input.into(),
-            what: "not a trace: the columns must be t, x_0.., v_0.. (cradle run --trace)".into(),
+            what: "not a trace: the columns must be t, x_b.., v_b.. (and for a chain f_b.., f_wall_left, f_wall_right; cradle run --trace)".into(),
         }
         .into());
+    }
+    if table.rows.is_empty() {
+        return Err(InputError::Data {
+            path: input.into(),
+            what: "a trace with no rows".into(),
+        }
+        .into());
+    }
+    let name = input.file_stem().unwrap_or_default().to_string_lossy();
+    let column = |c: usize| table.numbers(c);
+    if xs.len() > super::spacetime::LINES_UP_TO {
+        // A long chain: every row, as images (no lines to thin).
+        let h = super::spacetime::Histories {
+            title: title
+                .map(str::to_string)
+                .unwrap_or_else(|| format!("{name}: {} beads recorded", xs.len())),
+            t: column(0)?,
+            beads: xs.iter().map(|b| b.0).collect(),
+            v: vs.iter().map(|b| column(b.1)).collect::<Result<_, _>>()?,
+            f_beads: fs.iter().map(|b| b.0).collect(),
+            f: fs.iter().map(|b| column(b.1)).collect::<Result<_, _>>()?,
+        };
+        return crate::with_canvas!(out, (1000, 900), |area| super::spacetime::draw(area, &h));
     }
     let every = table.rows.len().div_ceil(MAX_POINTS).max(1);
     let keep = |col: Vec<f64>| -> Vec<f64> {
@@ -47,31 +96,25 @@ pub fn plot(input: &Path, title: Option<&str>, out: &Path) -> Result<()> {
             .map(|(_, v)| v)
             .collect()
     };
-    let t = keep(table.numbers(0)?);
+    let t = keep(column(0)?);
     let mut x = vec![];
     let mut v = vec![];
-    for i in 0..n {
-        x.push(keep(
-            table.numbers(table.col("--trace", &format!("x_{i}"))?)?,
-        ));
-        v.push(keep(
-            table.numbers(table.col("--trace", &format!("v_{i}"))?)?,
-        ));
+    for (&(_, xc), &(_, vc)) in xs.iter().zip(&vs) {
+        x.push(keep(column(xc)?));
+        v.push(keep(column(vc)?));
     }
     let amp = x.iter().flatten().fold(
         0.0f64,
         |m, &a| if a.is_finite() { m.max(a.abs()) } else { m },
     );
     let trace = Trace {
-        title: title.map(str::to_string).unwrap_or_else(|| {
-            format!(
-                "{}: {n} balls",
-                input.file_stem().unwrap_or_default().to_string_lossy()
-            )
-        }),
+        title: title
+            .map(str::to_string)
+            .unwrap_or_else(|| format!("{name}: {} balls", xs.len())),
         t,
         x,
         v,
+        beads: xs.iter().map(|b| b.0).collect(),
         spacing: if amp > 0.0 { amp } else { 1.0 },
     };
     crate::with_canvas!(out, (1000, 800), |area| draw(area, &trace))
@@ -142,7 +185,7 @@ fn draw<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, tr: &Trace) -> Result
             c.stroke_width(2),
         ))
         .map_err(drawing)?
-        .label(format!("ball {i}"))
+        .label(format!("ball {}", tr.beads[i]))
         .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], c.stroke_width(3)));
     }
     ch.configure_series_labels()

@@ -203,3 +203,54 @@ def test_a_sampled_table_is_drawn_as_points_and_a_click_opens_the_nearest(tmp_pa
             page.get_by_test_id("trace-plot").wait_for(timeout=20_000)
             browser.close()
         assert not errors, errors
+
+
+def test_a_chain_sweep_opens_a_clicked_chain_as_a_space_time_image(tmp_path):
+    """A sweep of granular chains: the map draws, a click runs that chain
+    again and shows its bead histories as an image (bead × time)."""
+    from playwright.sync_api import sync_playwright
+
+    if not Path(CHROMIUM).exists():
+        pytest.skip(f"no browser at {CHROMIUM}: apt-get install chromium")
+    spec = ("[scene]\nballs = 120\nradius = 0.005\n[scene.walls]\nright = true\n"
+            "[scene.launch]\nballs = 1\nvelocity = 0.1\n[scene.probes]\nbeads = [30, 90]\n"
+            "[scene.impurity]\nbeads = [60]\nmass = 1e-3\n[scene.solver]\ntolerance = 1e-4\n"
+            "[[axis]]\nparam = \"launch.velocity\"\nvalues = [0.05, 0.1, 0.2]\n"
+            "[[axis]]\nparam = \"impurity.mass\"\nlogspace = [1e-4, 1e-2, 3]\n")
+    with explorer(tmp_path, "chains", spec) as (url, table):
+        rows = table.read_text().splitlines()
+        header = rows[0].split(",")
+        status, body = get(url + "api/scene?id=4")
+        assert status == 200, body
+        h = body["histories"]
+        assert body["beads"] == 120 and h["beads"][0] == 0 and h["beads"][-1] == 119
+        assert len(h["v"]) == len(h["beads"]) and len(h["v"][0]) == len(h["t"]) > 50
+        # The run again is the sweep's row.
+        assert body["outcome"] == [[k, v] for k, v in zip(header[3:], rows[5].split(",")[3:])]
+        with sync_playwright() as pw:
+            browser = pw.chromium.launch(executable_path=CHROMIUM, args=ARGS)
+            page = browser.new_page(viewport={"width": 1400, "height": 900})
+            errors = []
+            page.on("pageerror", lambda e: errors.append(str(e)))
+            page.goto(url)
+            page.wait_for_selector("body[data-ready='1']", timeout=20_000)
+            cv = page.get_by_test_id("phase-map")
+            box = cv.bounding_box()
+            # Cell (velocity 1, impurity mass 2): scene 1·3 + 2 = 5.
+            page.mouse.click(box["x"] + 1.5 * box["width"] / 3, box["y"] + 0.5 * box["height"] / 3)
+            details = page.get_by_test_id("scene-details")
+            assert details.get_attribute("data-scene-id") == "5"
+            page.get_by_test_id("spacetime-image").wait_for(timeout=20_000)
+            colours = page.evaluate(
+                """() => { const c = document.querySelector('[data-testid=spacetime-image]');
+                           const d = c.getContext('2d').getImageData(0, 0, c.width, c.height).data;
+                           const s = new Set(); for (let i = 0; i < d.length; i += 4 * 7) s.add(d[i] + ',' + d[i+1] + ',' + d[i+2]);
+                           return s.size; }"""
+            )
+            assert colours > 10, colours
+            assert "energy_transmitted" in details.inner_text()
+            shot = os.environ.get("EXPLORER_CHAIN_SCREENSHOT")
+            if shot:
+                page.screenshot(path=shot)
+            browser.close()
+        assert not errors, errors

@@ -17,6 +17,7 @@
 //! it stays at rest exactly, whatever the stiffnesses (no absolute
 //! positions of 10^4 beads, whose differences would not cancel).
 
+pub mod history;
 pub mod observe;
 pub mod run;
 pub mod step;
