@@ -532,19 +532,36 @@ fn a_granular_chain_runs_with_its_probes_walls_and_record() {
     let png = dir.path().join("t.png");
     success(&["plot", "--trace", t, "--out", png.to_str().unwrap()]);
     assert_eq!(&fs::read(&png).unwrap()[..4], b"\x89PNG");
-    let all: Vec<String> = (0..100).map(|i| i.to_string()).collect();
-    let long = write(
-        &dir,
-        "long.toml",
-        &format!(
-            "balls = 100\nradius = 0.005\n[walls]\nright = true\n[launch]\nballs = 1\nvelocity = 0.1\n\
-             [record]\nbeads = [{}]\nevery = 2e-5\n",
-            all.join(", ")
-        ),
-    );
+    let long_text =
+        "balls = 100\nradius = 0.005\n[walls]\nright = true\n[launch]\nballs = 1\nvelocity = 0.1\n\
+         [record]\nstride = 1\nevery = 2e-5\n";
+    let long = write(&dir, "long.toml", long_text);
     let long_trace = dir.path().join("long.csv");
     let lt = long_trace.to_str().unwrap();
     success(&["run", &long, "--trace", lt]);
+    // stride = 1: every bead; stride = 40: beads 0, 40, 80 and the last.
+    let header = |path: &str| -> Vec<String> {
+        let mut r = csv::Reader::from_path(path).unwrap();
+        r.headers().unwrap().iter().map(String::from).collect()
+    };
+    let h = header(lt);
+    assert_eq!(h.iter().filter(|c| c.starts_with("x_")).count(), 100);
+    let sparse = write(
+        &dir,
+        "sparse.toml",
+        &long_text.replace("stride = 1", "stride = 40"),
+    );
+    let st = dir.path().join("sparse.csv");
+    success(&["run", &sparse, "--trace", st.to_str().unwrap()]);
+    let h = header(st.to_str().unwrap());
+    assert_eq!(h[1..5], ["x_0", "x_40", "x_80", "x_99"]);
+    let both = write(
+        &dir,
+        "both.toml",
+        &long_text.replace("stride = 1", "stride = 2\nbeads = [1]"),
+    );
+    let e = bad_input(&["run", &both, "--trace", st.to_str().unwrap()]);
+    assert!(e.contains("record.stride") && e.contains("not both"), "{e}");
     let svg = dir.path().join("long.svg");
     success(&["plot", "--trace", lt, "--out", svg.to_str().unwrap()]);
     let text = fs::read_to_string(&svg).unwrap();

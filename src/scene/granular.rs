@@ -22,6 +22,7 @@ type PatternList<'a> = (&'a str, &'a Option<Vec<f64>>, fn(f64) -> bool, &'a str)
 /// Bead indices as written: each an integer in 0 ..= n−1, no repeats.
 fn bead_list(c: &Check, key: &str, beads: &[i64], n: usize) -> Result<Vec<usize>, InputError> {
     let mut out = Vec::with_capacity(beads.len());
+    let mut seen = vec![false; n];
     for (i, &b) in beads.iter().enumerate() {
         if !(0..n as i64).contains(&b) {
             return Err(c.err(
@@ -30,7 +31,7 @@ fn bead_list(c: &Check, key: &str, beads: &[i64], n: usize) -> Result<Vec<usize>
                 format!("a bead index in 0 ..= {} (the chain has {n} beads)", n - 1),
             ));
         }
-        if out.contains(&(b as usize)) {
+        if std::mem::replace(&mut seen[b as usize], true) {
             return Err(c.err(
                 &format!("{key}[{i}]"),
                 b,
@@ -306,14 +307,38 @@ impl SceneSpec {
             setup.pulse = Some(self.pulse_of(c, p, n, duration)?);
         }
         if let Some(r) = &self.record {
-            let beads = match &r.beads {
-                Some(b) if !b.is_empty() => bead_list(c, "record.beads", b, n)?,
+            let beads = match (&r.beads, r.stride) {
+                (Some(_), Some(k)) => {
+                    return Err(c.err(
+                        "record.stride",
+                        k,
+                        "either `beads` (a list) or `stride` (every stride-th bead), not both",
+                    ))
+                }
+                (None, Some(k)) => {
+                    if !(1..n as i64).contains(&k) {
+                        return Err(c.err(
+                            "record.stride",
+                            k,
+                            format!("a whole number in 1 ..= {} (beads 0, stride, 2·stride, … and the last)", n - 1),
+                        ));
+                    }
+                    let mut b: Vec<usize> = (0..n).step_by(k as usize).collect();
+                    if b.last() != Some(&(n - 1)) {
+                        b.push(n - 1);
+                    }
+                    b
+                }
+                (Some(b), None) if !b.is_empty() => bead_list(c, "record.beads", b, n)?,
                 _ => {
                     return Err(InputError::Missing {
                         origin: self.origin.clone(),
                         line: self.line_of("record"),
                         key: "record.beads".into(),
-                        help: format!("the recorded beads, indices in 0 ..= {}", n - 1),
+                        help: format!(
+                            "the recorded beads, indices in 0 ..= {} (or `stride = k`: every k-th bead)",
+                            n - 1
+                        ),
                     })
                 }
             };

@@ -152,6 +152,9 @@ pub struct PulseSpec {
 #[serde(deny_unknown_fields)]
 pub struct RecordSpec {
     pub beads: Option<Vec<i64>>,
+    /// Instead of `beads`: every `stride`-th bead from bead 0, and the last.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub stride: Option<i64>,
     pub every: Option<f64>,
 }
 
