@@ -124,11 +124,21 @@ impl Source {
         }
     }
 
+    /// A TOML input (a scene or a sweep file), through [`open_input`].
     pub fn read(path: &std::path::Path) -> Result<Self, InputError> {
-        let text = std::fs::read_to_string(path).map_err(|error| InputError::Read {
+        use std::io::Read;
+        let read_err = |error| InputError::Read {
             path: path.to_path_buf(),
             error,
-        })?;
+        };
+        let mut text = String::new();
+        open_input(path, MAX_TOML_BYTES)?
+            .take(MAX_TOML_BYTES + 1)
+            .read_to_string(&mut text)
+            .map_err(read_err)?;
+        if text.len() as u64 > MAX_TOML_BYTES {
+            return Err(too_large(path, MAX_TOML_BYTES));
+        }
         Ok(Source::new(path.display().to_string(), text))
     }
 
@@ -219,3 +229,72 @@ mod tests {
 #[derive(Debug, thiserror::Error)]
 #[error("interrupted")]
 pub struct Interrupted;
+
+/// Most bytes of a TOML input (a scene or sweep file, a sidecar).
+pub const MAX_TOML_BYTES: u64 = 64 << 20;
+/// Most bytes of a table or point list read as an input.
+pub const MAX_TABLE_BYTES: u64 = 256 << 30;
+
+fn too_large(path: &std::path::Path, cap: u64) -> InputError {
+    InputError::Data {
+        path: path.to_path_buf(),
+        what: format!(
+            "larger than the {} MB this kind of input may have",
+            cap >> 20
+        ),
+    }
+}
+
+/// The one way an input file is opened: a regular file of at most `cap`
+/// bytes. A FIFO, a device, a socket or a directory is refused before it
+/// is opened (opening a FIFO blocks until a writer comes; a device such as
+/// /dev/zero never ends), naming the path and what it is.
+pub fn open_input(path: &std::path::Path, cap: u64) -> Result<std::fs::File, InputError> {
+    let read_err = |error| InputError::Read {
+        path: path.to_path_buf(),
+        error,
+    };
+    let meta = std::fs::metadata(path).map_err(read_err)?;
+    if !meta.is_file() {
+        return Err(InputError::Data {
+            path: path.to_path_buf(),
+            what: format!(
+                "{}, not a regular file: inputs are read from files",
+                file_kind(&meta.file_type())
+            ),
+        });
+    }
+    if meta.len() > cap {
+        return Err(too_large(path, cap));
+    }
+    std::fs::File::open(path).map_err(read_err)
+}
+
+/// Whether `path` is a regular file (following links), without opening it.
+pub fn is_regular_file(path: &std::path::Path) -> bool {
+    std::fs::metadata(path).is_ok_and(|m| m.is_file())
+}
+
+fn file_kind(t: &std::fs::FileType) -> &'static str {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::FileTypeExt;
+        if t.is_fifo() {
+            return "a FIFO (named pipe)";
+        }
+        if t.is_char_device() {
+            return "a character device";
+        }
+        if t.is_block_device() {
+            return "a block device";
+        }
+        if t.is_socket() {
+            return "a socket";
+        }
+    }
+    if t.is_dir() {
+        "a directory"
+    } else {
+        "not a file"
+    }
+}

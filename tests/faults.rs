@@ -773,3 +773,82 @@ fn parquet_output_survives_disk_full_and_kills_and_holds_the_csv_values() {
         "merge parts of one format",
     );
 }
+
+/// Every input is opened through one reader: a FIFO (which would block the
+/// open until a writer comes), a device (/dev/zero never ends) or a
+/// directory is refused at once, exit 2, naming it — as a scene, a sweep's
+/// scene file, a point list, a table to plot, fill, merge or explore, and a
+/// trace to plot.
+#[test]
+fn inputs_that_are_not_regular_files_are_refused_at_once() {
+    let d = tempfile::tempdir().unwrap();
+    let d = d.path();
+    let fifo = d.join("pipe");
+    assert!(Std::new("mkfifo").arg(&fifo).status().unwrap().success());
+    let sweep = |name: &str, text: &str| {
+        let p = d.join(name);
+        fs::write(&p, text).unwrap();
+        p
+    };
+    let scene_fifo = sweep("a.toml", "scene = \"pipe\"\n");
+    let points_zero = sweep(
+        "b.toml",
+        "[scene]\nballs = 3\nvelocity = [1.0, 0, 0]\n[points]\nfile = \"/dev/zero\"\n",
+    );
+    let out = d.join("o.csv");
+    let png = d.join("o.png");
+    let cases: Vec<(Vec<&str>, &str)> = vec![
+        (vec!["run", s(&fifo)], "a FIFO"),
+        (vec!["run", "/dev/zero"], "a character device"),
+        (vec!["run", s(d)], "a directory"),
+        (vec!["sweep", s(&scene_fifo), "--out", s(&out)], "a FIFO"),
+        (
+            vec!["sweep", s(&points_zero), "--out", s(&out)],
+            "/dev/zero",
+        ),
+        (
+            vec![
+                "plot",
+                "/dev/zero",
+                "--x",
+                "a",
+                "--y",
+                "b",
+                "--z",
+                "c",
+                "--out",
+                s(&png),
+            ],
+            "/dev/zero",
+        ),
+        (
+            vec!["plot", "--trace", s(&fifo), "--out", s(&png)],
+            "a FIFO",
+        ),
+        (vec!["fill", s(&fifo), "--out", s(&out)], "pipe"),
+        (vec!["explore", s(&fifo)], "a FIFO"),
+    ];
+    for (args, needle) in cases {
+        let t = Instant::now();
+        let mut cmd = Std::new(assert_cmd::cargo::cargo_bin("cradle"));
+        let mut child = cmd
+            .args(&args)
+            .stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        // A hang is the failure this test is about: give up after 20 s.
+        while child.try_wait().unwrap().is_none() {
+            if t.elapsed() > Duration::from_secs(20) {
+                child.kill().unwrap();
+                panic!("{args:?} hangs");
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        let o = child.wait_with_output().unwrap();
+        let e = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {e}");
+        assert!(e.contains(needle), "{args:?}: {e}");
+        assert!(!out.exists() && !png.exists(), "{args:?} wrote an output");
+    }
+}

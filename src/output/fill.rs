@@ -9,7 +9,7 @@ use std::collections::HashMap;
 use std::io::{BufRead, BufReader, Read, Write};
 use std::path::Path;
 
-use anyhow::{Context, Result};
+use anyhow::Result;
 
 use crate::error::InputError;
 use crate::sweep::axis::{Value, Values};
@@ -56,10 +56,10 @@ pub fn grid(table: &Path) -> Result<Option<Grid>> {
 /// in memory), a CSV as it is.
 pub fn csv_of(table: &Path) -> Result<Box<dyn Read>> {
     if !super::parquet_file::is_parquet(table) {
-        return Ok(Box::new(
-            std::fs::File::open(table)
-                .with_context(|| format!("cannot read {}", table.display()))?,
-        ));
+        return Ok(Box::new(crate::error::open_input(
+            table,
+            crate::error::MAX_TABLE_BYTES,
+        )?));
     }
     let (header, rows) = super::parquet_file::read_text(table)?;
     let mut bytes = Vec::new();

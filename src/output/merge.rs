@@ -222,9 +222,10 @@ fn copy_rows(parts: &[Part], tmp: &Path) -> Result<u64> {
     let mut line = Vec::new();
     let mut n = 0;
     for p in parts {
-        let mut r = BufReader::new(
-            File::open(&p.path).with_context(|| format!("cannot read {}", p.path.display()))?,
-        );
+        let mut r = BufReader::new(crate::error::open_input(
+            &p.path,
+            crate::error::MAX_TABLE_BYTES,
+        )?);
         line.clear();
         r.read_until(b'\n', &mut line)?;
         match &header {

@@ -336,9 +336,11 @@ pub fn join_partial(partial: &Path, start: u64, out: &Path, schema: &Schema) -> 
 /// Whether `path` is a Parquet file (its first bytes are Parquet's magic).
 pub fn is_parquet(path: &Path) -> bool {
     let mut magic = [0u8; 4];
-    File::open(path)
-        .and_then(|mut f| f.read_exact(&mut magic))
-        .is_ok()
+    // Never open a FIFO or a device to look (it could block or never end).
+    crate::error::is_regular_file(path)
+        && File::open(path)
+            .and_then(|mut f| f.read_exact(&mut magic))
+            .is_ok()
         && &magic == b"PAR1"
 }
 
@@ -351,7 +353,7 @@ pub fn read_text(path: &Path) -> Result<(Vec<String>, Vec<Vec<String>>)> {
     use arrow_array::Array;
     use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
 
-    let file = File::open(path).with_context(|| format!("cannot read {}", path.display()))?;
+    let file = crate::error::open_input(path, crate::error::MAX_TABLE_BYTES)?;
     let builder = ParquetRecordBatchReaderBuilder::try_new(file)?;
     let header: Vec<String> = builder
         .schema()

@@ -98,16 +98,18 @@ pub fn text<S: Serialize>(s: &Sidecar<S>) -> anyhow::Result<String> {
 /// the sidecar when it cannot be read or is not a cradle sidecar.
 pub fn read(table: &Path) -> Result<Option<Sidecar>, InputError> {
     let sc = path(table);
-    let text = match std::fs::read_to_string(&sc) {
-        Ok(t) => t,
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
-        Err(e) => {
-            return Err(InputError::Data {
-                path: sc,
-                what: format!("cannot be read ({e})"),
-            })
-        }
-    };
+    if !sc.exists() {
+        return Ok(None);
+    }
+    let mut text = String::new();
+    std::io::Read::read_to_string(
+        &mut crate::error::open_input(&sc, crate::error::MAX_TOML_BYTES)?,
+        &mut text,
+    )
+    .map_err(|e| InputError::Data {
+        path: sc.clone(),
+        what: format!("cannot be read ({e})"),
+    })?;
     serde_json::from_str(&text)
         .map(Some)
         .map_err(|e| InputError::Data {

@@ -23,6 +23,10 @@ impl Table {
         // A refined sweep's table is drawn as the full grid (`output::fill`),
         // a Parquet table read as the CSV's text.
         let source = crate::output::fill::full_csv(path).map_err(|e| {
+            let e = match e.downcast::<InputError>() {
+                Ok(input) => return input,
+                Err(e) => e,
+            };
             match e.downcast::<std::io::Error>() {
                 Ok(error) => InputError::Read {
                     path: path.to_path_buf(),

@@ -23,22 +23,10 @@ fn invalid(path: &Path, line: u64, key: &str, value: String, allowed: String) ->
 
 /// The columns of `path` as axes of a point list (each `Values::List`).
 pub fn read(path: &Path, spec: &SceneSpec, base: &Scene) -> Result<Vec<Axis>, InputError> {
+    let file = crate::error::open_input(path, crate::error::MAX_TABLE_BYTES)?;
     let mut r = csv::ReaderBuilder::new()
         .trim(csv::Trim::All)
-        .from_path(path)
-        .map_err(|e| match e.into_kind() {
-            csv::ErrorKind::Io(error) => InputError::Read {
-                path: path.to_path_buf(),
-                error,
-            },
-            k => invalid(
-                path,
-                1,
-                "header",
-                String::new(),
-                format!("a CSV table ({k:?})"),
-            ),
-        })?;
+        .from_reader(file);
     let (header, params) = header_params(path, &mut r)?;
     let mut cols: Vec<Vec<Value>> = vec![vec![]; header.len()];
     for rec in r.records() {
