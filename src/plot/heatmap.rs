@@ -8,6 +8,7 @@ use std::collections::HashMap;
 use std::path::Path;
 
 use anyhow::Result;
+use plotters::coord::types::RangedCoordf64;
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use plotters::style::colors::colormaps::ViridisRGB;
@@ -390,19 +391,28 @@ fn draw<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, g: &Grid) -> Result<(
                 .axis_desc_style((FONT, 15))
                 .draw()
                 .map_err(drawing)?;
-            let steps = 200;
-            cb.draw_series((0..steps).map(|k| {
-                let a = lo + (hi - lo) * k as f64 / steps as f64;
-                let b = lo + (hi - lo) * (k + 1) as f64 / steps as f64;
-                let z = if *log {
-                    10f64.powf(0.5 * (a + b))
-                } else {
-                    0.5 * (a + b)
-                };
-                Rectangle::new([(0.0, a), (1.0, b)], g.colours.of(z).filled())
-            }))
-            .map_err(drawing)?;
+            let log = *log;
+            colour_strip(&mut cb, (lo, hi), |c| {
+                g.colours.of(if log { 10f64.powf(c) } else { c })
+            })?;
         }
     }
+    Ok(())
+}
+
+/// A colour bar's strip: 200 bands from `lo` to `hi` of the bar's value
+/// axis, each coloured at its middle.
+pub fn colour_strip<DB: DrawingBackend>(
+    cb: &mut ChartContext<'_, DB, Cartesian2d<RangedCoordf64, RangedCoordf64>>,
+    (lo, hi): (f64, f64),
+    colour: impl Fn(f64) -> RGBColor,
+) -> Result<()> {
+    let steps = 200;
+    cb.draw_series((0..steps).map(|k| {
+        let a = lo + (hi - lo) * k as f64 / steps as f64;
+        let b = lo + (hi - lo) * (k + 1) as f64 / steps as f64;
+        Rectangle::new([(0.0, a), (1.0, b)], colour(0.5 * (a + b)).filled())
+    }))
+    .map_err(drawing)?;
     Ok(())
 }

@@ -257,14 +257,7 @@ fn colour_bar<DB: DrawingBackend>(
         .axis_desc_style((FONT, 13))
         .draw()
         .map_err(drawing)?;
-    let steps = 200;
-    cb.draw_series((0..steps).map(|k| {
-        let a = lo + (hi - lo) * k as f64 / steps as f64;
-        let b = lo + (hi - lo) * (k + 1) as f64 / steps as f64;
-        Rectangle::new([(0.0, a), (1.0, b)], scale.of(0.5 * (a + b)).filled())
-    }))
-    .map_err(drawing)?;
-    Ok(())
+    super::heatmap::colour_strip(&mut cb, (lo, hi), |z| scale.of(z))
 }
 
 #[cfg(test)]
