@@ -42,6 +42,7 @@ pub fn plan(a: &SlurmArgs) -> Result<Plan> {
         )
         .into());
     }
+    check_flags(a, spec.chains.is_some())?;
     let stem = a
         .sweep
         .file_stem()
@@ -69,6 +70,63 @@ pub fn plan(a: &SlurmArgs) -> Result<Plan> {
         },
         flags: a.solver.args(),
     })
+}
+
+/// The job-script flags, as Slurm would read them: nothing may end up in a
+/// script as a setting that does nothing, or as an extra `#SBATCH` line.
+fn check_flags(a: &SlurmArgs, chains: bool) -> Result<(), crate::InputError> {
+    if a.cpus_per_task == Some(0) {
+        return Err(flag(
+            "--cpus-per-task",
+            "0",
+            "a whole number ≥ 1 (the CPUs each task's sweep runs on)",
+        ));
+    }
+    if let Some(t) = &a.time {
+        if !slurm_time(t) {
+            return Err(flag(
+                "--time",
+                &format!("{t:?}"),
+                "a Slurm time limit: minutes, MM:SS, HH:MM:SS, D-HH, D-HH:MM, D-HH:MM:SS, or UNLIMITED",
+            ));
+        }
+    }
+    if let Some(p) = &a.partition {
+        let ok = |c: char| c.is_ascii_alphanumeric() || "_.-,".contains(c);
+        if p.is_empty() || !p.chars().all(ok) {
+            return Err(flag(
+                "--partition",
+                &format!("{p:?}"),
+                "a partition name (or a comma-separated list): letters, digits, _ . - only",
+            ));
+        }
+    }
+    if chains && a.gpus_per_task > 0 {
+        return Err(flag(
+            "--gpus-per-task",
+            &a.gpus_per_task.to_string(),
+            "0 for a sweep of granular chains: they run on the CPU (the GPU chain kernel is not built yet)",
+        ));
+    }
+    Ok(())
+}
+
+/// Whether `t` is one of Slurm's `--time` formats.
+fn slurm_time(t: &str) -> bool {
+    if matches!(t, "UNLIMITED" | "INFINITE" | "unlimited" | "infinite") {
+        return true;
+    }
+    let num = |s: &str| !s.is_empty() && s.len() <= 6 && s.bytes().all(|b| b.is_ascii_digit());
+    let (days, rest) = match t.split_once('-') {
+        Some((d, r)) => (Some(d), r),
+        None => (None, t),
+    };
+    if days.is_some_and(|d| !num(d)) {
+        return false;
+    }
+    let parts: Vec<&str> = rest.split(':').collect();
+    // MM, MM:SS, HH:MM:SS; after a day count: HH, HH:MM, HH:MM:SS.
+    parts.iter().all(|p| num(p)) && (1..=3).contains(&parts.len())
 }
 
 pub struct Plan {
@@ -238,4 +296,34 @@ pub fn write(p: &Plan) -> Result<Vec<PathBuf>> {
         paths.push(path);
     }
     Ok(paths)
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn slurm_times() {
+        for ok in [
+            "30",
+            "90:00",
+            "12:00:00",
+            "2-0",
+            "2-12:30",
+            "1-00:00:00",
+            "UNLIMITED",
+        ] {
+            assert!(super::slurm_time(ok), "{ok}");
+        }
+        for bad in [
+            "",
+            "1h",
+            "12:00:00\n#SBATCH --x",
+            "-1",
+            "1:2:3:4",
+            "a-1",
+            "1--2",
+            " 30",
+        ] {
+            assert!(!super::slurm_time(bad), "{bad:?}");
+        }
+    }
 }

@@ -651,6 +651,40 @@ fn run_and_slurm_apply_the_same_rules_as_sweep() {
         ],
         "axis `tolerance`",
     );
+    // Job-script flags Slurm would not take, or that would add a line.
+    let sl = d.join("sl");
+    for (flag, value, needle) in [
+        ("--cpus-per-task", "0", "≥ 1"),
+        ("--time", "1:00:00\n#SBATCH --mem=1", "Slurm time limit"),
+        ("--time", "1h", "Slurm time limit"),
+        ("--partition", "gpu\n#SBATCH --x", "partition name"),
+    ] {
+        refused(
+            &[
+                "slurm",
+                s(&sw),
+                "--shards",
+                "2",
+                flag,
+                value,
+                "--dir",
+                s(&sl),
+            ],
+            needle,
+        );
+    }
+    ok(&[
+        "slurm",
+        s(&sw),
+        "--shards",
+        "2",
+        "--time",
+        "2-12:00",
+        "--dir",
+        s(&sl),
+    ]);
+    assert!(sl.join("array.sbatch").exists());
+    fs::remove_dir_all(&sl).unwrap();
     assert!(!d.join("sl").exists(), "nothing written for a refused plan");
 }
 

@@ -794,6 +794,10 @@ fn refinement_in_three_axes_with_a_threshold_shards_parquet_and_refusals() {
             "a power of two",
         ),
         ("[refine]\ncolum = \"ejected\"\n", "colum"),
+        (
+            "[refine]\ncolumn = \"status\"\nthreshold = 0.5\n",
+            "a text column",
+        ),
     ] {
         let p = refine_sweep(d, "bad.toml", axes, refine);
         refused(&["sweep", p.to_str().unwrap(), "--out", x], needle);

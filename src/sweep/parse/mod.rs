@@ -435,6 +435,18 @@ impl Sweep {
                     "a number ≥ 0: corners differing by more than it are refined".into(),
                 ))
             }
+            Some(t)
+                if matches!(
+                    types[k],
+                    crate::output::row::ColType::Text | crate::output::row::ColType::Status
+                ) =>
+            {
+                return Err(invalid(
+                    "refine.threshold",
+                    t.to_string(),
+                    format!("no threshold for `{column}`, a text column: its corners are compared as values (refined where they differ); a threshold is for a numeric column"),
+                ))
+            }
             None if types[k] == crate::output::row::ColType::Num => {
                 return Err(invalid(
                     "refine.column",
