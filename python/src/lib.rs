@@ -247,6 +247,28 @@ fn run(
         (None, None) => return Err(PyValueError::new_err("a run needs a scene or a text")),
     }
     .map_err(to_py)?;
+    if let Some(beads) = &cfg.beads {
+        // A granular chain (docs/SPEC.md §9): the chain's columns.
+        let o = py
+            .detach(|| std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| cfg.run_chain())))
+            .map_err(|_| PyRuntimeError::new_err("the run panicked"))?
+            .map_err(to_py)?;
+        let cols = hertz_cradle::output::chain_row::Columns::of(beads);
+        let header = cols.header();
+        let d = PyDict::new(py);
+        let (mut k, mut err) = (0, Ok(()));
+        cols.emit(&o, &mut |f| {
+            let r = field_to_py(py, f).and_then(|v| d.set_item(&header[k], v));
+            if err.is_ok() {
+                err = r;
+            }
+            k += 1;
+        });
+        err?;
+        d.set_item("model", cfg.solver.model.name())?;
+        d.set_item("scene", &cfg.name)?;
+        return Ok(d.unbind());
+    }
     let outcome = py
         .detach(|| std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| cfg.run())))
         .map_err(|_| PyRuntimeError::new_err("the run panicked"))?
