@@ -141,7 +141,8 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             out,
         } => {
             let input = table.iter().chain(&trace).cloned().collect::<Vec<_>>();
-            let out_path = guard::output("--out", &out, &input, &[])?;
+            let tmp = plot::tmp_suffix(&out);
+            let out_path = guard::output("--out", &out, &input, &[tmp.as_str()])?;
             let out = &out_path;
             match (table, trace) {
                 (_, Some(tr)) => plot::trace::plot(&tr, title.as_deref(), out)?,

@@ -360,15 +360,7 @@ fn trace_output(name: &str, path: &Path) -> Result<PathBuf, InputError> {
         .then(|| name.into())
         .into_iter()
         .collect();
-    guard::output("--trace", path, &inputs, &[])
-}
-
-/// The trace file, created for buffered writing.
-fn create_trace(path: &Path) -> anyhow::Result<std::io::BufWriter<std::fs::File>> {
-    use anyhow::Context;
-    let file = std::fs::File::create(path)
-        .with_context(|| format!("cannot create trace file {}", path.display()))?;
-    Ok(std::io::BufWriter::new(file))
+    guard::output("--trace", path, &inputs, &[crate::output::publish::TMP])
 }
 
 /// A checked scene, ready to run.
@@ -541,18 +533,17 @@ impl RunRequest {
         let plan = granular::plan(beads, &self.solver, every);
         Ok(match &self.trace {
             None => granular::run(beads, &plan, &mut granular::NoRows),
-            Some((path, _)) => {
-                let mut tw = crate::output::trace::ChainTraceWriter::new(
-                    create_trace(path)?,
-                    beads,
-                    self.trace_beads.clone(),
-                )
-                .with_context(|| format!("writing {}", path.display()))?;
+            // Written beside the path and published whole (a kill or a
+            // full disk leaves the previous trace, never a cut-off one).
+            Some((path, _)) => crate::output::publish::write_with(path, |w| {
+                let mut tw =
+                    crate::output::trace::ChainTraceWriter::new(w, beads, self.trace_beads.clone())
+                        .with_context(|| format!("writing {}", path.display()))?;
                 let o = granular::run(beads, &plan, &mut tw);
                 tw.finish()
                     .with_context(|| format!("writing {}", path.display()))?;
-                o
-            }
+                Ok(o)
+            })?,
         })
     }
 
@@ -615,15 +606,14 @@ impl RunRequest {
         let (chain, solver) = (&self.chain, &self.solver);
         Ok(match &self.trace {
             None => simulate_chain(chain, solver, &mut Silent),
-            Some((path, every)) => {
-                let mut tw =
-                    crate::output::trace::TraceWriter::new(create_trace(path)?, chain, *every)
-                        .with_context(|| format!("writing {}", path.display()))?;
+            Some((path, every)) => crate::output::publish::write_with(path, |w| {
+                let mut tw = crate::output::trace::TraceWriter::new(w, chain, *every)
+                    .with_context(|| format!("writing {}", path.display()))?;
                 let o = simulate_chain(chain, solver, &mut tw);
                 tw.finish()
                     .with_context(|| format!("writing {}", path.display()))?;
-                o
-            }
+                Ok(o)
+            })?,
         })
     }
 

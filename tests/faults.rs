@@ -886,3 +886,50 @@ fn inputs_that_are_not_regular_files_are_refused_at_once() {
         assert!(!out.exists() && !png.exists(), "{args:?} wrote an output");
     }
 }
+
+/// `run --trace` and `plot --out` over an existing file are atomic: a full
+/// disk when the new file is finished leaves the previous one whole and no
+/// temporary file beside it.
+#[test]
+fn trace_and_plot_keep_the_previous_file_when_the_disk_fills() {
+    let d = tempfile::tempdir().unwrap();
+    let d = d.path();
+    let (trace, png) = (d.join("t.csv"), d.join("p.png"));
+    ok(&["run", "cradle-1", "--trace", s(&trace)]);
+    ok(&["plot", "--trace", s(&trace), "--out", s(&png)]);
+    let (t0, p0) = (fs::read(&trace).unwrap(), fs::read(&png).unwrap());
+    let full = |args: &[&str]| {
+        let o = cradle()
+            .args(args)
+            .env("CRADLE_FAILPOINT", "publish:1")
+            .output()
+            .unwrap();
+        let e = stderr(&o);
+        assert_eq!(o.status.code(), Some(1), "{args:?}: {e}");
+        assert!(e.contains("No space left"), "{args:?}: {e}");
+    };
+    full(&[
+        "run",
+        "cradle-1",
+        "--trace",
+        s(&trace),
+        "--trace-dt",
+        "1e-6",
+    ]);
+    full(&[
+        "plot",
+        "--trace",
+        s(&trace),
+        "--out",
+        s(&png),
+        "--title",
+        "x",
+    ]);
+    assert_eq!(fs::read(&trace).unwrap(), t0, "the trace was replaced");
+    assert_eq!(fs::read(&png).unwrap(), p0, "the plot was replaced");
+    let left: Vec<_> = fs::read_dir(d)
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
+    assert_eq!(left.len(), 2, "temporary files left: {left:?}");
+}

@@ -3,7 +3,8 @@
 //! pass (1-based) of the failpoint `NAME` fail with "No space left on
 //! device", as a full disk would. Unset (every normal run), a failpoint costs
 //! one load of a cached `None`. Names: `append` (a batch of rows reaching the
-//! `.partial`), `sidecar` (the sidecar, before the CSV is renamed).
+//! `.partial`), `sidecar` (the sidecar, before the CSV is renamed),
+//! `publish` (any finished file, before it is renamed over its name).
 
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::OnceLock;

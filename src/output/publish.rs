@@ -21,6 +21,8 @@ pub const TMP: &str = ".tmp";
 /// the directory synced. `tmp` must already be on disk: every writer syncs
 /// the file it wrote where it finishes writing it ([`write_with`] does).
 pub fn publish(tmp: &Path, path: &Path) -> Result<()> {
+    super::failpoint::check("publish")
+        .with_context(|| format!("cannot write {}", path.display()))?;
     fs::rename(tmp, path)
         .with_context(|| format!("cannot rename {} to {}", tmp.display(), path.display()))?;
     // The rename is durable once the directory is (not every filesystem

@@ -52,27 +52,60 @@ impl Format {
     }
 }
 
+/// Suffix of the temporary image a plot is drawn into before it is
+/// published under `--out` (it keeps the image's extension, which the
+/// bitmap encoder reads): `x.png` is drawn as `x.png.tmp.png`.
+pub fn tmp_suffix(out: &Path) -> String {
+    let ext = out
+        .extension()
+        .map_or(String::new(), |e| e.to_string_lossy().into_owned());
+    format!(".tmp.{ext}")
+}
+
+/// Make `tmp`, the finished drawing, visible as `out` (synced, then renamed:
+/// a kill or a full disk leaves the previous image, never a cut-off one);
+/// on error `tmp` is removed.
+pub fn publish(tmp: &Path, out: &Path, drawn: anyhow::Result<()>) -> anyhow::Result<()> {
+    let r = drawn.and_then(|_| {
+        std::fs::File::open(tmp)
+            .and_then(|f| f.sync_all())
+            .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", tmp.display()))?;
+        crate::output::publish::publish(tmp, out)
+    });
+    if r.is_err() {
+        let _ = std::fs::remove_file(tmp);
+    }
+    r
+}
+
 /// Make the canvas for `out` and draw on it with `$draw(&area)` (a generic
-/// function of the backend): PNG through the bitmap backend, SVG as text.
+/// function of the backend): PNG through the bitmap backend, SVG as text;
+/// drawn into a temporary file beside `out` and published atomically
+/// ([`publish`]).
 #[macro_export]
 macro_rules! with_canvas {
     ($out:expr, $size:expr, $draw:expr) => {{
         use plotters::prelude::*;
-        match $crate::plot::Format::of($out)? {
-            $crate::plot::Format::Png => {
-                let area = BitMapBackend::new($out, $size).into_drawing_area();
-                $draw(&area)?;
-                area.present()
-                    .map_err(|e| anyhow::anyhow!("writing {}: {e}", $out.display()))?;
+        let out: &std::path::Path = $out;
+        let tmp = $crate::output::guard::with_suffix(out, &$crate::plot::tmp_suffix(out));
+        let drawn = (|| -> anyhow::Result<()> {
+            match $crate::plot::Format::of(out)? {
+                $crate::plot::Format::Png => {
+                    let area = BitMapBackend::new(&tmp, $size).into_drawing_area();
+                    $draw(&area)?;
+                    area.present()
+                        .map_err(|e| anyhow::anyhow!("writing {}: {e}", out.display()))?;
+                }
+                $crate::plot::Format::Svg => {
+                    let area = SVGBackend::new(&tmp, $size).into_drawing_area();
+                    $draw(&area)?;
+                    area.present()
+                        .map_err(|e| anyhow::anyhow!("writing {}: {e}", out.display()))?;
+                }
             }
-            $crate::plot::Format::Svg => {
-                let area = SVGBackend::new($out, $size).into_drawing_area();
-                $draw(&area)?;
-                area.present()
-                    .map_err(|e| anyhow::anyhow!("writing {}: {e}", $out.display()))?;
-            }
-        }
-        anyhow::Ok(())
+            Ok(())
+        })();
+        $crate::plot::publish(&tmp, out, drawn)
     }};
 }
 
