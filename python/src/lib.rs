@@ -32,6 +32,9 @@ use pyo3::types::{PyDict, PyList};
 
 /// An error as Python sees it: bad input → ValueError (the CLI's message),
 /// an interrupt → KeyboardInterrupt, anything else → RuntimeError.
+/// Writes a row's fields, in order, to the function it is given.
+type Emit<'a> = &'a mut dyn FnMut(&mut dyn FnMut(Field));
+
 fn to_py(e: Error) -> PyErr {
     let text = e.to_string();
     match e {
@@ -247,48 +250,40 @@ fn run(
         (None, None) => return Err(PyValueError::new_err("a run needs a scene or a text")),
     }
     .map_err(to_py)?;
-    if let Some(beads) = &cfg.beads {
-        // A granular chain (docs/SPEC.md §9): the chain's columns.
-        let o = py
-            .detach(|| std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| cfg.run_chain())))
+    /// Run off the GIL, a panic as a Python error.
+    fn unwound<T: Send>(
+        py: Python<'_>,
+        f: impl FnOnce() -> Result<T, hertz_cradle::Error> + Send,
+    ) -> PyResult<T> {
+        py.detach(|| std::panic::catch_unwind(std::panic::AssertUnwindSafe(f)))
             .map_err(|_| PyRuntimeError::new_err("the run panicked"))?
-            .map_err(to_py)?;
-        let cols = hertz_cradle::output::chain_row::Columns::of(beads);
-        let header = cols.header();
-        let d = PyDict::new(py);
+            .map_err(to_py)
+    }
+    let d = PyDict::new(py);
+    // Each emitted field under its column's name (from `skip` on).
+    let fill = |header: &[String], skip: usize, emit: Emit| {
         let (mut k, mut err) = (0, Ok(()));
-        cols.emit(&o, &mut |f| {
-            let r = field_to_py(py, f).and_then(|v| d.set_item(&header[k], v));
-            if err.is_ok() {
-                err = r;
+        emit(&mut |f| {
+            if k >= skip && err.is_ok() {
+                err = field_to_py(py, f).and_then(|v| d.set_item(&header[k], v));
             }
             k += 1;
         });
-        err?;
-        d.set_item("model", cfg.solver.model.name())?;
-        d.set_item("scene", &cfg.name)?;
-        return Ok(d.unbind());
+        err
+    };
+    if let Some(beads) = &cfg.beads {
+        // A granular chain (docs/SPEC.md §9): the chain's columns.
+        let o = unwound(py, || cfg.run_chain())?;
+        let cols = hertz_cradle::output::chain_row::Columns::of(beads);
+        fill(&cols.header(), 0, &mut |out| cols.emit(&o, out))?;
+    } else {
+        let outcome = unwound(py, || cfg.run())?;
+        let shape = cfg.shape();
+        // Column 0 is the id, meaningless for one scene.
+        fill(&row::header(&[], shape), 1, &mut |out| {
+            row::emit_fields(0, |_| {}, &outcome, shape, out)
+        })?;
     }
-    let outcome = py
-        .detach(|| std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| cfg.run())))
-        .map_err(|_| PyRuntimeError::new_err("the run panicked"))?
-        .map_err(to_py)?;
-    let shape = cfg.shape();
-    let header = row::header(&[], shape);
-    let d = PyDict::new(py);
-    let mut k = 0;
-    let mut err = Ok(());
-    row::emit_fields(0, |_| {}, &outcome, shape, &mut |f| {
-        if k > 0 {
-            // Column 0 is the id, meaningless for one scene.
-            let r = field_to_py(py, f).and_then(|v| d.set_item(&header[k], v));
-            if err.is_ok() {
-                err = r;
-            }
-        }
-        k += 1;
-    });
-    err?;
     d.set_item("model", cfg.solver.model.name())?;
     d.set_item("scene", &cfg.name)?;
     Ok(d.unbind())

@@ -397,12 +397,12 @@ fn run_chain_scene(sweep: &Sweep, id: u64) -> Result<Json_> {
     plan.every = Some(plan.h);
     let mut h = History::new(&job.beads, HISTORY_BEADS, HISTORY_ROWS);
     let o = granular::run(&job.beads, &plan, &mut h);
-    let mut outcome = vec![];
-    let (names, mut k, mut s) = (cols.header(), 0, String::new());
-    cols.emit(&o, &mut |f| {
-        outcome.push(json!([names[k], crate::output::row::field_text(f, &mut s)]));
-        k += 1;
-    });
+    let outcome: Vec<Json_> = cols
+        .header()
+        .into_iter()
+        .zip(cols.texts(&o))
+        .map(|(name, text)| json!([name, text]))
+        .collect();
     let f32s = |rows: &[Vec<f64>]| -> Vec<Vec<f32>> {
         rows.iter()
             .map(|r| r.iter().map(|&x| x as f32).collect())

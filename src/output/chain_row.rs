@@ -67,6 +67,21 @@ impl Columns {
         h
     }
 
+    /// Number of columns ([`Columns::header`]'s length).
+    pub fn width(&self) -> usize {
+        1 + 3 * self.probes.len() + self.velocities.len() + TAIL.len()
+    }
+
+    /// The fields of a row as the CSV writes them, in
+    /// [`Columns::header`]'s order.
+    pub fn texts(&self, o: &ChainOutcome) -> Vec<String> {
+        let (mut f, mut s) = (Vec::with_capacity(self.width()), String::new());
+        self.emit(o, &mut |x| {
+            f.push(super::row::field_text(x, &mut s).to_string())
+        });
+        f
+    }
+
     /// Column types, parallel to [`Columns::header`].
     pub fn types(&self) -> Vec<ColType> {
         use ColType::*;
@@ -92,7 +107,7 @@ impl Columns {
         use crate::engine::Status;
         out(Field::Text(o.status.name()));
         if o.status == Status::Invalid {
-            (1..self.header().len()).for_each(|_| out(Field::Null));
+            (1..self.width()).for_each(|_| out(Field::Null));
             return;
         }
         let garbage = o.status == Status::NonFinite;
@@ -150,12 +165,7 @@ pub fn header(b: &Beads) -> Vec<String> {
 
 /// The row's fields as text, in [`header`]'s order (NaN: empty).
 pub fn fields(b: &Beads, o: &ChainOutcome) -> Vec<String> {
-    let mut f = Vec::new();
-    let mut s = String::new();
-    Columns::of(b).emit(o, &mut |x| {
-        f.push(super::row::field_text(x, &mut s).to_string())
-    });
-    f
+    Columns::of(b).texts(o)
 }
 
 /// A human-readable table of one chain run (`cradle run`).

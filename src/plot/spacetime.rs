@@ -124,6 +124,15 @@ fn spans(xs: &[f64], pixels: u32, cell: u32, at: impl Fn(f64) -> f64) -> Vec<(us
         .collect()
 }
 
+/// The image's axes: times `t` (a span > 0 even for one row) and the
+/// recorded beads ± 1/2.
+fn extent(t: &[f64], beads: &[usize]) -> ((f64, f64), (f64, f64)) {
+    (
+        (t[0], t[t.len() - 1].max(t[0] + f64::MIN_POSITIVE)),
+        (beads[0] as f64 - 0.5, beads[beads.len() - 1] as f64 + 0.5),
+    )
+}
+
 /// The image's cells, top row first (the last bead at the top, time to the
 /// right): for a plot of `size` pixels in cells of `cell` pixels, each
 /// cell's value of largest magnitude among the samples (`t`, `rows[bead
@@ -136,8 +145,7 @@ pub fn raster(
     size: (u32, u32),
     cell: u32,
 ) -> Vec<Vec<f64>> {
-    let (t0, t1) = (t[0], t[t.len() - 1].max(t[0] + f64::MIN_POSITIVE));
-    let (b0, b1) = (beads[0] as f64 - 0.5, beads[beads.len() - 1] as f64 + 0.5);
+    let ((t0, t1), (b0, b1)) = extent(t, beads);
     let bf: Vec<f64> = beads.iter().map(|&b| b as f64).collect();
     let cols = spans(t, size.0, cell, |p| t0 + p * (t1 - t0));
     let lines = spans(&bf, size.1, cell, |p| b1 - p * (b1 - b0));
@@ -195,8 +203,7 @@ fn image<DB: DrawingBackend>(
 ) -> Result<()> {
     let w = area.dim_in_pixel().0 as i32;
     let (main, bar) = area.split_horizontally(w - 150);
-    let (t0, t1) = (h.t[0], h.t[h.t.len() - 1].max(h.t[0] + f64::MIN_POSITIVE));
-    let (b0, b1) = (beads[0] as f64 - 0.5, beads[beads.len() - 1] as f64 + 0.5);
+    let ((t0, t1), (b0, b1)) = extent(&h.t, beads);
     let mut ch = ChartBuilder::on(&main)
         .margin(12)
         .x_label_area_size(45)

@@ -90,10 +90,12 @@ impl Sweep {
             .collect();
         let costs: Vec<f64> = ids
             .par_iter()
-            .map(|&id| match self.job(id, o) {
-                _ if self.chains.is_some() => self.chain_cost(id, o),
-                Ok(Job::Run { chain, solver }) => Solver::expected_cost(&solver, &chain),
-                _ => 1.0,
+            .map(|&id| match self.chains {
+                Some(_) => self.chain_cost(id, o),
+                None => match self.job(id, o) {
+                    Ok(Job::Run { chain, solver }) => Solver::expected_cost(&solver, &chain),
+                    _ => 1.0,
+                },
             })
             .collect();
         // Sample j stands for ids [ids[j], ids[j+1]): cumulative cost at its start.

@@ -69,6 +69,36 @@ def explorer(d, name, spec_text):
         p.wait(timeout=10)
 
 
+@contextlib.contextmanager
+def opened(url):
+    """The page at `url` in chromium, once it says it is ready; yields the
+    page and the list of page errors seen (checked empty by the caller)."""
+    from playwright.sync_api import sync_playwright
+
+    with sync_playwright() as pw:
+        browser = pw.chromium.launch(executable_path=CHROMIUM, args=ARGS)
+        page = browser.new_page(viewport={"width": 1400, "height": 900})
+        errors = []
+        page.on("pageerror", lambda e: errors.append(str(e)))
+        page.goto(url)
+        page.wait_for_selector("body[data-ready='1']", timeout=20_000)
+        try:
+            yield page, errors
+        finally:
+            browser.close()
+
+
+def distinct_colours(page, testid, every):
+    """How many colours a canvas holds, looking at every `every`-th pixel."""
+    return page.evaluate(
+        """([id, every]) => { const c = document.querySelector(`[data-testid=${id}]`);
+                   const d = c.getContext('2d').getImageData(0, 0, c.width, c.height).data;
+                   const s = new Set(); for (let i = 0; i < d.length; i += 4 * every) s.add(d[i] + ',' + d[i+1] + ',' + d[i+2]);
+                   return s.size; }""",
+        [testid, every],
+    )
+
+
 @pytest.fixture(scope="module")
 def server(tmp_path_factory):
     if not Path(CHROMIUM).exists():
@@ -127,13 +157,7 @@ def test_the_page_draws_the_map_and_a_click_opens_that_scene(server):
         # x: the first axis (mass[2], 60 values), y: the second (gap, 40).
         assert cv.get_attribute("data-nx") == "60" and cv.get_attribute("data-ny") == "40"
         # The raster is drawn: more than one colour on the canvas.
-        colours = page.evaluate(
-            """() => { const c = document.querySelector('[data-testid=phase-map]');
-                       const d = c.getContext('2d').getImageData(0, 0, c.width, c.height).data;
-                       const s = new Set(); for (let i = 0; i < d.length; i += 4 * 97) s.add(d[i] + ',' + d[i+1] + ',' + d[i+2]);
-                       return s.size; }"""
-        )
-        assert colours >= 2
+        assert distinct_colours(page, "phase-map", 97) >= 2
         # Click the cell of mass index 45 (x), gap index 10 (y, drawn upwards).
         box = cv.bounding_box()
         ix, iy = 45, 10
@@ -175,8 +199,6 @@ def test_the_page_draws_the_map_and_a_click_opens_that_scene(server):
 
 
 def test_a_sampled_table_is_drawn_as_points_and_a_click_opens_the_nearest(tmp_path):
-    from playwright.sync_api import sync_playwright
-
     if not Path(CHROMIUM).exists():
         pytest.skip(f"no browser at {CHROMIUM}: apt-get install chromium")
     spec = ("[scene]\nballs = 5\nvelocity = [1.0, 0, 0, 0, 0]\n"
@@ -184,13 +206,7 @@ def test_a_sampled_table_is_drawn_as_points_and_a_click_opens_the_nearest(tmp_pa
             "[[axis]]\nparam = \"mass[2]\"\nrange = [0.0064, 0.64]\nscale = \"log\"\n"
             "[[axis]]\nparam = \"gap\"\nrange = [0.0, 2e-5]\n")
     with explorer(tmp_path, "lhs", spec) as (url, _):
-        with sync_playwright() as pw:
-            browser = pw.chromium.launch(executable_path=CHROMIUM, args=ARGS)
-            page = browser.new_page(viewport={"width": 1400, "height": 900})
-            errors = []
-            page.on("pageerror", lambda e: errors.append(str(e)))
-            page.goto(url)
-            page.wait_for_selector("body[data-ready='1']", timeout=20_000)
+        with opened(url) as (page, errors):
             cv = page.get_by_test_id("phase-map")
             assert cv.get_attribute("data-points") == "300"
             pts = page.evaluate("pts")
@@ -201,15 +217,12 @@ def test_a_sampled_table_is_drawn_as_points_and_a_click_opens_the_nearest(tmp_pa
             details = page.get_by_test_id("scene-details")
             assert details.get_attribute("data-scene-id") == str(int(want))
             page.get_by_test_id("trace-plot").wait_for(timeout=20_000)
-            browser.close()
         assert not errors, errors
 
 
 def test_a_chain_sweep_opens_a_clicked_chain_as_a_space_time_image(tmp_path):
     """A sweep of granular chains: the map draws, a click runs that chain
     again and shows its bead histories as an image (bead × time)."""
-    from playwright.sync_api import sync_playwright
-
     if not Path(CHROMIUM).exists():
         pytest.skip(f"no browser at {CHROMIUM}: apt-get install chromium")
     spec = ("[scene]\nballs = 120\nradius = 0.005\n[scene.walls]\nright = true\n"
@@ -227,13 +240,7 @@ def test_a_chain_sweep_opens_a_clicked_chain_as_a_space_time_image(tmp_path):
         assert len(h["v"]) == len(h["beads"]) and len(h["v"][0]) == len(h["t"]) > 50
         # The run again is the sweep's row.
         assert body["outcome"] == [[k, v] for k, v in zip(header[3:], rows[5].split(",")[3:])]
-        with sync_playwright() as pw:
-            browser = pw.chromium.launch(executable_path=CHROMIUM, args=ARGS)
-            page = browser.new_page(viewport={"width": 1400, "height": 900})
-            errors = []
-            page.on("pageerror", lambda e: errors.append(str(e)))
-            page.goto(url)
-            page.wait_for_selector("body[data-ready='1']", timeout=20_000)
+        with opened(url) as (page, errors):
             cv = page.get_by_test_id("phase-map")
             box = cv.bounding_box()
             # Cell (velocity 1, impurity mass 2): scene 1·3 + 2 = 5.
@@ -241,16 +248,10 @@ def test_a_chain_sweep_opens_a_clicked_chain_as_a_space_time_image(tmp_path):
             details = page.get_by_test_id("scene-details")
             assert details.get_attribute("data-scene-id") == "5"
             page.get_by_test_id("spacetime-image").wait_for(timeout=20_000)
-            colours = page.evaluate(
-                """() => { const c = document.querySelector('[data-testid=spacetime-image]');
-                           const d = c.getContext('2d').getImageData(0, 0, c.width, c.height).data;
-                           const s = new Set(); for (let i = 0; i < d.length; i += 4 * 7) s.add(d[i] + ',' + d[i+1] + ',' + d[i+2]);
-                           return s.size; }"""
-            )
+            colours = distinct_colours(page, "spacetime-image", 7)
             assert colours > 10, colours
             assert "energy_transmitted" in details.inner_text()
             shot = os.environ.get("EXPLORER_CHAIN_SCREENSHOT")
             if shot:
                 page.screenshot(path=shot)
-            browser.close()
         assert not errors, errors
