@@ -250,13 +250,6 @@ impl SweepRequest {
                     "a sweep of cradles: a granular chain's step is chosen from the tolerance by its fitted error model (docs/SPEC.md §9); run the sweep again at a tighter tolerance to see the error",
                 ));
             }
-            if settings.backend == BackendChoice::Gpu {
-                return Err(flag(
-                    "--backend",
-                    "gpu",
-                    "cpu or auto for a sweep of granular chains: the GPU chain kernel is not built yet (docs/SPEC.md §9)",
-                ));
-            }
         }
         Ok(SweepRequest {
             sweep,
@@ -308,13 +301,7 @@ impl SweepRequest {
     /// given, every row written to the output (then its sidecar, then the
     /// output published under its name) and given to `hooks.on_row`.
     pub fn run(&self, hooks: Hooks) -> Result<Summary, Error> {
-        // Granular chains run on the CPU engine (no GPU chain kernel yet;
-        // `--backend gpu` was refused when the request was checked).
-        let backend: Box<dyn crate::backend::Backend> = if self.sweep.chains.is_some() {
-            Box::new(crate::backend::cpu::Cpu)
-        } else {
-            crate::backend::choose(self.backend, self.precision)?
-        };
+        let backend = crate::backend::choose(self.backend, self.precision)?;
         let opts = Options {
             out: self.out.clone(),
             resume: self.resume,

@@ -42,7 +42,7 @@ pub fn plan(a: &SlurmArgs) -> Result<Plan> {
         )
         .into());
     }
-    check_flags(a, spec.chains.is_some())?;
+    check_flags(a)?;
     let stem = a
         .sweep
         .file_stem()
@@ -74,7 +74,7 @@ pub fn plan(a: &SlurmArgs) -> Result<Plan> {
 
 /// The job-script flags, as Slurm would read them: nothing may end up in a
 /// script as a setting that does nothing, or as an extra `#SBATCH` line.
-fn check_flags(a: &SlurmArgs, chains: bool) -> Result<(), crate::InputError> {
+fn check_flags(a: &SlurmArgs) -> Result<(), crate::InputError> {
     if a.cpus_per_task == Some(0) {
         return Err(flag(
             "--cpus-per-task",
@@ -100,13 +100,6 @@ fn check_flags(a: &SlurmArgs, chains: bool) -> Result<(), crate::InputError> {
                 "a partition name (or a comma-separated list): letters, digits, _ . - only",
             ));
         }
-    }
-    if chains && a.gpus_per_task > 0 {
-        return Err(flag(
-            "--gpus-per-task",
-            &a.gpus_per_task.to_string(),
-            "0 for a sweep of granular chains: they run on the CPU (the GPU chain kernel is not built yet)",
-        ));
     }
     Ok(())
 }

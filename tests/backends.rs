@@ -343,6 +343,15 @@ fn shaders_validate_with_naga() {
         .validate(&module)
         .unwrap_or_else(|e| panic!("{}: {e:?}", p.name()));
     }
+    let src = hertz_cradle::backend::gpu::chain_shader();
+    let module = naga::front::wgsl::parse_str(&src)
+        .unwrap_or_else(|e| panic!("chains: {}", e.emit_to_string(&src)));
+    naga::valid::Validator::new(
+        naga::valid::ValidationFlags::all(),
+        naga::valid::Capabilities::FLOAT64,
+    )
+    .validate(&module)
+    .unwrap_or_else(|e| panic!("chains: {e:?}"));
 }
 
 /// The shader's df64 arithmetic is `engine::real::Df64`'s, operation for
@@ -674,6 +683,7 @@ fn shader_cites_only_rust_items_that_exist() {
     let body = [
         hertz_cradle::backend::gpu::SHADER_BODY,
         hertz_cradle::backend::gpu::WIDE_BODY,
+        &hertz_cradle::backend::gpu::chain_shader(),
     ]
     .concat();
     fn rust_under(dir: &std::path::Path, out: &mut String) {
@@ -998,5 +1008,66 @@ fn gpu_profiles_parse_with_clear_errors() {
     ] {
         let e = Profile::parse(bad).unwrap_err().to_string();
         assert!(e.contains(says), "{bad}: {e}");
+    }
+}
+
+/// Granular chains (docs/SPEC.md §9) through the chain kernel (a workgroup
+/// per chain, shaders/chains.wgsl) give the CPU's outcomes bit for bit on
+/// lavapipe: free ends and walls, precompression, a force pulse (its sine
+/// and its push on the bead), a dimer pattern, a taper, an impurity, a
+/// stop time and the default end at the far peak, chains shorter and
+/// longer than a workgroup (64 invocations striding over 200 beads), an
+/// invalid chain passed through, and the caps (a step cap mid-run).
+#[test]
+fn gpu_chain_kernel_gives_the_cpus_chain_outcomes() {
+    use hertz_cradle::backend::ChainJob;
+    use hertz_cradle::engine::granular::{self, Beads, ChainOutcome};
+    let Some(g) = gpu() else { return };
+    let scenes = [
+        // struck free chain, default end (the far bead's first peak)
+        "balls = 40\nradius = 0.005\n[launch]\nballs = 1\nvelocity = 0.1\n[probes]\nbeads = [10, 30]\n",
+        // 200-bead dimer against a wall: more beads than invocations
+        "balls = 200\nradius = 0.005\n[walls]\nright = true\n[pattern]\nradius = [0.005, 0.0035]\n[launch]\nballs = 1\nvelocity = 0.2\n[probes]\nbeads = [20, 150, 199]\n",
+        // precompressed between walls, pulse on the last bead, taper, impurity, stop time
+        "balls = 130\nradius = 0.005\n[walls]\nleft = true\nright = true\nprecompression = 2.0\n[impurity]\nbeads = [64]\nradius = 0.003\n[taper]\nratio = 0.001\n[pulse]\nbead = 129\nforce = 30.0\nduration = 2e-5\n[probes]\nbeads = [10, 64, 100]\n[stop]\nduration = 4e-4\n",
+        // pulse on a free chain, several steps per pulse, given dt
+        "balls = 30\nradius = 0.005\n[pulse]\nbead = 0\nforce = 20.0\nduration = 1e-6\n[solver]\ndt = 1e-8\n[probes]\nbeads = [5, 25]\n[stop]\nduration = 3e-6\n",
+    ];
+    let mut jobs: Vec<Option<ChainJob>> = scenes
+        .iter()
+        .map(|text| {
+            let s = Scene::from_toml_str("chain", text).unwrap_or_else(|e| panic!("{e}\n{text}"));
+            let solver = Solver::resolve(&s, &Overrides::default()).unwrap();
+            let beads = Beads::from_scene(&s);
+            let plan = granular::plan(&beads, &solver, None);
+            Some(ChainJob { beads, plan })
+        })
+        .collect();
+    // A step cap mid-run (and a count that crosses a dispatch).
+    let mut capped = jobs[0].clone().unwrap();
+    capped.plan.max_steps = 777;
+    jobs.push(Some(capped));
+    jobs.insert(1, None);
+    let source = |k: usize| Ok(jobs[k].clone());
+    let cpu = Cpu.run_chains(jobs.len(), &source).unwrap();
+    let gpu = g.run_chains(jobs.len(), &source).unwrap();
+    assert_eq!(cpu.len(), gpu.len());
+    for (k, (c, d)) in cpu.iter().zip(&gpu).enumerate() {
+        assert_eq!(format!("{c:?}"), format!("{d:?}"), "chain {k}");
+    }
+    let status = |o: &ChainOutcome| o.status;
+    assert_eq!(status(&gpu[1]), Status::Invalid);
+    assert_eq!(status(&gpu[5]), Status::StepCap);
+    assert_eq!(gpu[5].steps, 777);
+    for k in [0, 2, 3, 4] {
+        assert_eq!(status(&gpu[k]), Status::Ok, "chain {k}");
+    }
+    // The struck chains' pulses reach every probe.
+    for k in [0, 2] {
+        assert!(
+            gpu[k].probes.iter().all(|p| p.arrival.is_finite()),
+            "chain {k}: {:?}",
+            gpu[k].probes
+        );
     }
 }

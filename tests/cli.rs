@@ -570,7 +570,7 @@ fn a_granular_chain_runs_with_its_probes_walls_and_record() {
     // The striker's 0.1 m/s is the largest speed: the scale's full red is in the image.
     assert!(text.contains("#B2182B"), "no saturated cell");
     // --trace-dt must agree with [record] every; a chain sweep refuses the
-    // GPU backend (no chain kernel yet) and the settings it cannot honour.
+    // settings it cannot honour.
     let e = bad_input(&["run", &scene, "--trace", t, "--trace-dt", "1e-5"]);
     assert!(e.contains("--trace-dt") && e.contains("every"), "{e}");
     let e = bad_input(&["run", &scene, "--precision", "f32"]);
@@ -583,7 +583,6 @@ fn a_granular_chain_runs_with_its_probes_walls_and_record() {
     let o = dir.path().join("o.csv");
     let o = o.to_str().unwrap();
     for (flags, says) in [
-        (&["--backend", "gpu"][..], "GPU chain kernel"),
         (&["--error-estimate"][..], "--error-estimate"),
         (&["--precision", "df64"][..], "f64"),
     ] {

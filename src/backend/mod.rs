@@ -110,6 +110,8 @@ pub struct Needs {
     pub terms: bool,
     /// Fewest and most bodies a scene's chain may have.
     pub bodies: (usize, usize),
+    /// A sweep of granular chains (docs/SPEC.md §9): only the chain kernel.
+    pub chains: bool,
 }
 
 /// What a GPU did during a sweep (the sidecar's `stages_s.gpu`).

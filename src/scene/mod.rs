@@ -162,6 +162,13 @@ pub struct Pulse {
     pub duration: f64,
 }
 
+impl Pulse {
+    /// ω = π/τ (1/s): the force is F·sin(ωt).
+    pub fn omega(&self) -> f64 {
+        std::f64::consts::PI / self.duration
+    }
+}
+
 /// Bead histories for `cradle run --trace`.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct Record {

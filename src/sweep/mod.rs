@@ -161,6 +161,7 @@ impl Sweep {
             plain: !base_terms || terms_vary,
             terms: base_terms || terms_vary,
             bodies: (if glued { 2 } else { fewest_balls }, self.width),
+            chains: self.chains.is_some(),
         })
     }
 

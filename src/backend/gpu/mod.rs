@@ -13,8 +13,10 @@
 //! | `pack.rs` | one scene's header, params and state, by name through `layout` |
 //! | `device.rs` | one batch on the device: buffers, rounds in flight, read-back |
 //! | `probe.rs` | the df64 arithmetic probe (tests) |
+//! | `chains.rs` | granular chains: a workgroup per chain (`shaders/chains.wgsl`) |
 
 mod adapter;
+mod chains;
 mod device;
 mod pack;
 mod probe;
@@ -28,12 +30,13 @@ use anyhow::{anyhow, bail, Context, Result};
 use bytemuck::Pod;
 
 use super::layout::{self, PARAMS, STATE};
-use super::{Backend, DeviceStats, Job, Needs};
+use super::{Backend, ChainSource, DeviceStats, Job, Needs};
 use crate::engine::integrate::Run;
 use crate::engine::real::{Df64, Real};
 use crate::engine::{plan, simulate_chain, Chain, Outcome, Silent, Solver, UNSTEPPED};
 use crate::scene::Precision;
 pub use adapter::{find_adapter, quiet_mesa_without_session, Want};
+pub use chains::{chain_shader, ChainHead, CHAIN_WG};
 use device::WORKGROUP;
 pub use probe::DF64_PROBE_OPS;
 use profile::Tracker;
@@ -61,6 +64,8 @@ pub struct Gpu {
     max_binding: u64,
     profile: Profile,
     stats: Tracker,
+    /// The granular-chain pipeline, compiled on first use.
+    chain_pipe: Mutex<Option<Arc<chains::ChainPipe>>>,
 }
 
 impl Gpu {
@@ -129,6 +134,7 @@ impl Gpu {
                 Profile::HARDWARE
             },
             stats: Tracker::default(),
+            chain_pipe: Mutex::new(None),
         };
         Ok(gpu)
     }
@@ -259,6 +265,27 @@ impl Backend for Gpu {
     /// [`Gpu::prepare`].
     fn prepare(&self, needs: &Needs) -> Result<()> {
         Gpu::prepare(self, needs)
+    }
+
+    /// A workgroup per chain (`chains.rs`); the chains are built on the
+    /// rayon pool, all of the batch before the device starts.
+    fn run_chains(
+        &self,
+        n: usize,
+        job: ChainSource,
+    ) -> Result<Vec<crate::engine::granular::ChainOutcome>> {
+        use rayon::prelude::*;
+        let jobs: Vec<Option<super::ChainJob>> =
+            (0..n).into_par_iter().map(job).collect::<Result<_, _>>()?;
+        let valid: Vec<&super::ChainJob> = jobs.iter().flatten().collect();
+        let mut done = self.run_chain_jobs(&valid)?.into_iter();
+        Ok(jobs
+            .iter()
+            .map(|j| match j {
+                Some(_) => done.next().expect("one outcome per chain"),
+                None => crate::engine::granular::ChainOutcome::invalid(),
+            })
+            .collect())
     }
 
     fn run(&self, jobs: &[Job]) -> Result<Vec<Outcome>> {

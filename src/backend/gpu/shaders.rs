@@ -62,12 +62,16 @@ pub fn size_class(n_bodies: usize) -> usize {
 pub(super) type PipeKey = (Precision, bool, usize, bool);
 
 impl Gpu {
-    /// Compile every pipeline scenes as `needs` describes can use: each size
+    /// Compile every pipeline scenes as `needs` describes can use: for a
+    /// sweep of granular chains the chain kernel alone; else each size
     /// class from the fewest to the most bodies, with and without the
     /// `TERMS` code as needed, each class in the kernel the profile gives
     /// it. A shader that does not build on this device fails here, naming
     /// the precision and class, before any scene runs.
     pub fn prepare(&self, needs: &Needs) -> Result<()> {
+        if needs.chains {
+            return self.chain_pipe().map(|_| ());
+        }
         if !needs.hertz {
             return Ok(());
         }

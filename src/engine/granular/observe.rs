@@ -97,8 +97,8 @@ pub fn bead_rates_with(
 ) -> (f64, f64, f64) {
     let mut jerk = (left - right) * b.inv_mass[i];
     if let Some(p) = b.pulse.as_ref().filter(|p| p.bead == i && t < p.duration) {
-        let w = std::f64::consts::PI / p.duration;
-        jerk += p.force * w * (w * t).cos() * b.inv_mass[i];
+        let w = p.omega();
+        jerk += p.force * w * super::step::pulse_cos(t, w) * b.inv_mass[i];
     }
     (st.v[i], st.a[i], jerk)
 }
@@ -132,6 +132,58 @@ impl FirstPeak {
             }
         }
         self.last = Some((t, q));
+    }
+}
+
+/// Reals of a packed [`FirstPeak`] ([`FirstPeak::pack`]).
+pub const FIRST_PEAK_REALS: usize = 8;
+/// Reals of a packed [`WallWatch`] ([`WallWatch::pack`]).
+pub const WALL_WATCH_REALS: usize = 7;
+
+/// `last` as (has, t, q0, q1, q2).
+fn pack_last(last: &Option<(f64, [f64; 3])>) -> [f64; 5] {
+    match last {
+        Some((t, q)) => [1.0, *t, q[0], q[1], q[2]],
+        None => [0.0; 5],
+    }
+}
+
+fn unpack_last(r: &[f64]) -> Option<(f64, [f64; 3])> {
+    (r[0] != 0.0).then_some((r[1], [r[2], r[3], r[4]]))
+}
+
+impl FirstPeak {
+    /// As reals for the GPU twin: has_last, last t and q, found, its t and value.
+    pub fn pack(&self) -> [f64; FIRST_PEAK_REALS] {
+        let l = pack_last(&self.last);
+        let (f, ft, fv) = match self.found {
+            Some((t, v)) => (1.0, t, v),
+            None => (0.0, 0.0, 0.0),
+        };
+        [l[0], l[1], l[2], l[3], l[4], f, ft, fv]
+    }
+
+    pub fn unpack(r: &[f64]) -> FirstPeak {
+        FirstPeak {
+            last: unpack_last(r),
+            found: (r[5] != 0.0).then_some((r[6], r[7])),
+        }
+    }
+}
+
+impl WallWatch {
+    /// As reals for the GPU twin: has_last, last t and q, peak, impulse.
+    pub fn pack(&self) -> [f64; WALL_WATCH_REALS] {
+        let l = pack_last(&self.last);
+        [l[0], l[1], l[2], l[3], l[4], self.peak, self.impulse]
+    }
+
+    pub fn unpack(r: &[f64]) -> WallWatch {
+        WallWatch {
+            last: unpack_last(r),
+            peak: r[5],
+            impulse: r[6],
+        }
     }
 }
 

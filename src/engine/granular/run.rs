@@ -22,7 +22,7 @@ impl Rows for NoRows {
 }
 
 /// Check overlaps and finiteness every this many steps (over the window).
-const CHECK_EVERY: u64 = 16;
+pub const CHECK_EVERY: u64 = 16;
 
 /// Run `beads` as planned, rows to `rows`.
 pub fn run(beads: &Beads, plan: &Plan, rows: &mut dyn Rows) -> ChainOutcome {
@@ -95,7 +95,7 @@ pub fn run_with(b: &Beads, plan: &Plan, rows: &mut dyn Rows, whole: bool) -> Cha
 }
 
 /// Largest overlap over the smaller radius of its contact, contacts lo ..= hi.
-fn overlap_ratio(b: &Beads, st: &State, lo: usize, hi: usize) -> f64 {
+pub fn overlap_ratio(b: &Beads, st: &State, lo: usize, hi: usize) -> f64 {
     let n = b.n;
     let mut m = 0.0f64;
     for j in lo..=hi.min(n) {
@@ -113,19 +113,20 @@ fn overlap_ratio(b: &Beads, st: &State, lo: usize, hi: usize) -> f64 {
 }
 
 /// The observers of one run.
-struct Watch {
+#[derive(Clone, Debug)]
+pub struct Watch {
     /// Per probe: its velocity peak and its force peak.
-    probes: Vec<(FirstPeak, FirstPeak)>,
-    far: FirstPeak,
-    walls: [WallWatch; 2],
+    pub probes: Vec<(FirstPeak, FirstPeak)>,
+    pub far: FirstPeak,
+    pub walls: [WallWatch; 2],
     /// FWHM (beads) taken when the last probe's pulse arrives.
-    width: f64,
-    floor_v: f64,
-    floor_f: f64,
+    pub width: f64,
+    pub floor_v: f64,
+    pub floor_f: f64,
 }
 
 impl Watch {
-    fn new(b: &Beads) -> Watch {
+    pub fn new(b: &Beads) -> Watch {
         let vs = b.v_scale();
         let fs = b.mass.iter().cloned().fold(0.0, f64::max) * vs / b.time_scale();
         Watch {
@@ -138,7 +139,7 @@ impl Watch {
         }
     }
 
-    fn see(&mut self, b: &Beads, st: &State, t: f64) {
+    pub fn see(&mut self, b: &Beads, st: &State, t: f64) {
         let n = b.n;
         let last = b.probes.len().wrapping_sub(1);
         for (k, &i) in b.probes.iter().enumerate() {
@@ -203,8 +204,11 @@ pub fn fwhm(v: &[f64]) -> f64 {
     right - left
 }
 
+/// The outcome of a run that ended at `t` in `st` with `status`, from its
+/// observers, the energy it is measured against and the largest overlap
+/// ratio seen (the last window's is taken here).
 #[allow(clippy::too_many_arguments)]
-fn finish(
+pub fn finish(
     b: &Beads,
     plan: &Plan,
     st: State,

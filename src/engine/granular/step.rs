@@ -115,10 +115,57 @@ fn forces(b: &Beads, s: &mut State, t: f64) {
     }
     if let Some(pl) = &b.pulse {
         if t < pl.duration && (lo..hi).contains(&pl.bead) {
-            let f = pl.force * (std::f64::consts::PI * t / pl.duration).sin();
+            let f = pl.force * pulse_sin(t, pl.omega());
             s.a[pl.bead] += f * b.inv_mass[pl.bead];
         }
     }
+}
+
+/// 1/((2k)(2k+1)) for k = 10, 9, …, 1: the factors of [`half_sine`]'s Horner
+/// scheme (the GPU twin has them as constants, printed from these).
+pub const SINE_FACTORS: [f64; 10] = {
+    let mut f = [0.0; 10];
+    let mut i = 0;
+    while i < 10 {
+        let k = (10 - i) as f64;
+        f[i] = 1.0 / ((2.0 * k) * (2.0 * k + 1.0));
+        i += 1;
+    }
+    f
+};
+
+/// sin x for x in [−π/2, π] (what a half-sine pulse needs): x > π/2
+/// reflected to π − x, then the Taylor series to x^21 by Horner with
+/// multiplications only ([`SINE_FACTORS`]), each constant first in its
+/// product, so the GPU twin gives the same bits (Mesa reassociates a
+/// product to bring its constants together: (x²·p)·c became (x²·c)·p, and
+/// pendulum_sin's division by a constant is not exact there either); error
+/// < 1e-17 on [−π/2, π/2].
+#[inline(always)]
+pub fn half_sine(x: f64) -> f64 {
+    let x = if x > std::f64::consts::FRAC_PI_2 {
+        std::f64::consts::PI - x
+    } else {
+        x
+    };
+    let x2 = x * x;
+    let mut p = 1.0;
+    for f in SINE_FACTORS {
+        p = 1.0 - f * x2 * p;
+    }
+    x * p
+}
+
+/// sin(ωt) of a half-sine pulse, ω = π/τ (0 ≤ t < τ).
+#[inline(always)]
+pub fn pulse_sin(t: f64, omega: f64) -> f64 {
+    half_sine(omega * t)
+}
+
+/// cos(ωt) = sin(π/2 − ωt) of a half-sine pulse (0 ≤ t < τ).
+#[inline(always)]
+pub fn pulse_cos(t: f64, omega: f64) -> f64 {
+    half_sine(std::f64::consts::FRAC_PI_2 - omega * t)
 }
 
 #[inline(always)]
