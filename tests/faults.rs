@@ -413,7 +413,7 @@ fn resume_and_merge_refuse_parts_that_do_not_belong_together() {
     let cut = &text[..text.trim_end().rfind('\n').unwrap() + 1];
     fs::write(p("c2.csv"), cut).unwrap();
     fs::copy(p("s2.csv.json"), p("c2.csv.json")).unwrap();
-    refused(&merge(&["s1.csv", "c2.csv"]), "cut short");
+    refused(&merge(&["s1.csv", "c2.csv"]), "rows are missing");
     assert!(!p("m.csv").exists() && !p("m.csv.partial").exists());
     // The right parts merge to the unsharded bytes, and --resume of the
     // unsharded sweep recognises the merged file as complete.
@@ -932,4 +932,121 @@ fn trace_and_plot_keep_the_previous_file_when_the_disk_fills() {
         .map(|e| e.unwrap().file_name())
         .collect();
     assert_eq!(left.len(), 2, "temporary files left: {left:?}");
+}
+
+/// Flip one byte of `path` at `at` (a digit to another digit, anything else
+/// to its complement).
+fn flip(path: &Path, at: usize) {
+    let mut b = fs::read(path).unwrap();
+    b[at] = match b[at] {
+        b'0'..=b'8' => b[at] + 1,
+        b'9' => b'0',
+        x => !x,
+    };
+    fs::write(path, b).unwrap();
+}
+
+/// A table is read only with its sidecar's promise kept (rows, length,
+/// CRC-32 recorded when it was published): a refined table cut at a row
+/// boundary, a CSV and a Parquet table with one flipped byte are refused by
+/// merge, fill, plot and explore with exit 2 naming the file and what
+/// differs; no output names an input's sidecar; a table without a sidecar
+/// is read as a plain table.
+#[test]
+fn tables_are_read_only_with_their_sidecars_promise() {
+    let d = tempfile::tempdir().unwrap();
+    let sw = write_sweep(d.path(), 9, 9);
+    let refined = d.path().join("refined.toml");
+    fs::write(
+        &refined,
+        fs::read_to_string(&sw).unwrap() + "[refine]\ncolumn = \"ejected\"\nstride = 4\n",
+    )
+    .unwrap();
+    let (plain, cut, pq) = (
+        d.path().join("plain.csv"),
+        d.path().join("cut.csv"),
+        d.path().join("t.parquet"),
+    );
+    ok(&on_cpu(&sw, &plain, &[]));
+    ok(&on_cpu(&refined, &cut, &[]));
+    ok(&on_cpu(&sw, &pq, &[]));
+    let seal = &sidecar(&d.path().join("plain.csv.json"))["table"];
+    let lines = fs::read_to_string(&plain).unwrap().lines().count() as u64;
+    assert_eq!(seal["rows"], lines - 1, "{seal}");
+    assert_eq!(seal["bytes"], fs::metadata(&plain).unwrap().len(), "{seal}");
+    let out = d.path().join("o.csv");
+    let png = d.path().join("o.png");
+    let plot = |t: &Path| {
+        vec![
+            "plot".to_string(),
+            s(t).into(),
+            "--x".into(),
+            "mass[2]".into(),
+            "--y".into(),
+            "gap".into(),
+            "--z".into(),
+            "ejected".into(),
+            "--out".into(),
+            s(&png).into(),
+        ]
+    };
+    // Every reader takes the intact tables.
+    ok(&["merge", s(&cut), "--out", s(&out)]);
+    ok(&["fill", s(&cut), "--out", s(&out)]);
+    for t in [&plain, &cut, &pq] {
+        let o = run(&plot(t));
+        assert!(o.status.success(), "{}", stderr(&o));
+    }
+    // A refined table cut at a row boundary, sidecar intact.
+    let text = fs::read_to_string(&cut).unwrap();
+    let body = text.trim_end_matches('\n');
+    fs::write(&cut, &text[..body.rfind('\n').unwrap() + 1]).unwrap();
+    // One flipped byte in a CSV's last row and in a Parquet file's middle.
+    let n = fs::metadata(&plain).unwrap().len() as usize;
+    flip(&plain, n - 3);
+    flip(&pq, fs::metadata(&pq).unwrap().len() as usize / 2);
+    fs::remove_file(&out).unwrap();
+    for (t, what) in [
+        (&cut, "rows are missing"),
+        (&plain, "CRC-32"),
+        (&pq, "CRC-32"),
+    ] {
+        let e = refused(
+            &["merge", s(t), "--out", s(&out)],
+            "is not the table its sidecar",
+        );
+        assert!(e.contains(s(t)) && e.contains(what), "{e}");
+        refused(&plot(t), "is not the table its sidecar");
+        let o = cradle()
+            .args(["explore", s(t), "--port", "0"])
+            .timeout(Duration::from_secs(60))
+            .output()
+            .unwrap();
+        assert_eq!(o.status.code(), Some(2), "explore {t:?}: {}", stderr(&o));
+        assert!(
+            stderr(&o).contains("is not the table its sidecar"),
+            "{}",
+            stderr(&o)
+        );
+    }
+    refused(
+        &["fill", s(&cut), "--out", s(&out)],
+        "is not the table its sidecar",
+    );
+    assert!(!out.exists(), "nothing written");
+    // No output may name an input's sidecar (it would be replaced).
+    let json = d.path().join("cut.csv.json");
+    let before = fs::read(&json).unwrap();
+    refused(&["fill", s(&cut), "--out", s(&json)], "beside the input");
+    refused(&["merge", s(&cut), "--out", s(&json)], "beside the input");
+    assert_eq!(fs::read(&json).unwrap(), before);
+    // Without a sidecar a table is a plain table.
+    fs::remove_file(d.path().join("plain.csv.json")).unwrap();
+    let o = run(&plot(&plain));
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("read as a plain table"),
+        "{}",
+        stderr(&o)
+    );
 }

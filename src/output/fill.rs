@@ -31,7 +31,7 @@ fn bad(path: &Path, what: impl Into<String>) -> anyhow::Error {
 /// The grid of a refined table (from its sidecar), or `None` when the table
 /// is not refined.
 pub fn grid(table: &Path) -> Result<Option<Grid>> {
-    let Ok(Some(sc)) = super::sidecar::read(table) else {
+    let Some(sc) = super::sidecar::read_checked(table)? else {
         return Ok(None);
     };
     if sc.refine.is_none() {

@@ -11,12 +11,27 @@
 //! - never one of the command's inputs (the sweep file, the scene file it
 //!   names, a part being merged, the table being plotted), nor may one of the
 //!   companion files written beside it (`.partial`, `.json`, `.lock`, …) be;
+//! - never an input's companion (`merge --out part.csv.json` would replace
+//!   the sidecar the part is checked against);
 //! - its directory exists.
 
 use std::fs;
 use std::path::{Path, PathBuf};
 
 use crate::error::InputError;
+
+/// Every file written beside an output `FILE` (by a sweep or a merge): the
+/// partial rows, the resume fingerprint, the sidecar, their temporaries
+/// (`partial::write_atomic`) and the lock. [`output`] checks each of them.
+pub const COMPANIONS: &[&str] = &[
+    ".partial",
+    ".partial.spec",
+    ".partial.spec.tmp",
+    ".json",
+    ".json.tmp",
+    ".lock",
+    ".tmp",
+];
 
 /// `path` with `suffix` appended to its file name (`a.csv` → `a.csv.json`).
 pub fn with_suffix(path: &Path, suffix: &str) -> PathBuf {
@@ -155,6 +170,20 @@ pub fn output(
                 ),
             ));
         }
+        let input = resolve_links(flag, input).unwrap_or_else(|_| input.clone());
+        for suffix in COMPANIONS {
+            let c = with_suffix(&input, suffix);
+            if c == path || same_file(&c, &path) {
+                return Err(refuse(
+                    flag,
+                    out,
+                    format!(
+                        "is written beside the input {} (its `{suffix}` companion, which cradle reads or keeps with it): choose another output name",
+                        input.display()
+                    ),
+                ));
+            }
+        }
     }
     for suffix in companions {
         let c = with_suffix(&path, suffix);
@@ -210,6 +239,14 @@ mod tests {
             assert!(output("--out", &to_input, &ins, &[]).is_err());
             // A companion that is an input: `--out in` would write `in.toml`.
             assert!(output("--out", &d.path().join("in"), &ins, &[".toml"]).is_err());
+            // An input's companion: its sidecar, whether it exists or not.
+            let sidecar = d.path().join("in.toml.json");
+            assert!(output("--out", &sidecar, &ins, &[]).is_err());
+            fs::write(&sidecar, "{}").unwrap();
+            let e = output("--out", &sidecar, &ins, &[])
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains("beside the input"), "{e}");
         }
     }
 }

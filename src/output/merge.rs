@@ -53,7 +53,7 @@ impl Part {
 
 fn read_part(p: &Path) -> Result<Part> {
     let sc = super::sidecar::path(p);
-    let sidecar = match super::sidecar::read(p) {
+    let sidecar = match super::sidecar::read_checked(p) {
         Ok(Some(s)) => s,
         Ok(None) => {
             return Err(bad(
@@ -204,9 +204,11 @@ pub fn merge(inputs: &[PathBuf], out: &Path) -> Result<u64> {
     }
     let n = r?;
 
+    let mut sc = merged_sidecar(&parts, &key0, total, n);
+    sc.table = Some(super::sidecar::seal(&tmp, n)?);
     write_atomic(
         &super::sidecar::path(out),
-        super::sidecar::text(&merged_sidecar(&parts, &key0, total, n))?.as_bytes(),
+        super::sidecar::text(&sc)?.as_bytes(),
     )?;
     super::publish::publish(&tmp, out)?;
     Ok(n)

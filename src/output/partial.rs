@@ -23,6 +23,7 @@ use std::fs::{self, File, OpenOptions};
 use std::io::{BufRead, BufReader, Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};
 
+use super::sidecar::Seal;
 use anyhow::{Context, Result};
 
 use super::guard::with_suffix;
@@ -65,18 +66,7 @@ pub struct Partial {
     pub to_parquet: Option<(arrow_schema::SchemaRef, Vec<super::row::ColType>)>,
 }
 
-/// Every file written beside an output `FILE` (by a sweep or a merge): the
-/// partial rows, the resume fingerprint, the sidecar, their temporaries
-/// ([`write_atomic`]) and the lock. `output::guard` checks each of them.
-pub const COMPANIONS: &[&str] = &[
-    ".partial",
-    ".partial.spec",
-    ".partial.spec.tmp",
-    ".json",
-    ".json.tmp",
-    ".lock",
-    ".tmp",
-];
+pub use super::guard::COMPANIONS;
 
 pub fn partial_path(out: &Path) -> PathBuf {
     with_suffix(out, ".partial")
@@ -230,11 +220,17 @@ impl Partial {
         )
     }
 
-    /// All rows written: write the sidecar (`sidecar`: its path and text),
-    /// then make the table visible under its final name. The sidecar goes
-    /// first: if the run dies before the final rename, the `.partial` is
-    /// still there and `--resume` finishes it.
-    pub fn finish(self, sidecar: (&Path, &[u8])) -> Result<()> {
+    /// All rows written (`rows` of them): write the sidecar (at `sidecar`,
+    /// its text made by `text` from the final file's [`Seal`]), then make the
+    /// table visible under its final name. The sidecar goes first: if the
+    /// run dies before the final rename, the `.partial` is still there and
+    /// `--resume` finishes it.
+    pub fn finish(
+        self,
+        sidecar: &Path,
+        rows: u64,
+        text: impl FnOnce(Seal) -> Result<String>,
+    ) -> Result<()> {
         self.file
             .sync_all()
             .with_context(|| format!("cannot write {}", self.partial.display()))?;
@@ -270,9 +266,10 @@ impl Partial {
                 tmp
             }
         };
+        let text = text(super::sidecar::seal(&done, rows)?)?;
         crate::output::failpoint::check("sidecar")
-            .with_context(|| format!("cannot write {}", sidecar.0.display()))?;
-        write_atomic(sidecar.0, sidecar.1)?;
+            .with_context(|| format!("cannot write {}", sidecar.display()))?;
+        write_atomic(sidecar, text.as_bytes())?;
         super::publish::publish(&done, &self.path)?;
         if done != self.partial {
             let _ = fs::remove_file(&self.partial);

@@ -59,6 +59,91 @@ pub struct Sidecar<S = serde_json::Value> {
     /// A merged table: its parts.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub merged_from: Option<Vec<String>>,
+    /// The table's bytes as published ([`seal`]): every reader checks them
+    /// ([`read_checked`]). Absent in sidecars of cradle before 0.1 #31.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub table: Option<Seal>,
+}
+
+/// What a sidecar promises of its table: its rows, its length and the
+/// CRC-32 of its bytes, taken when the table was published.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Seal {
+    pub rows: u64,
+    pub bytes: u64,
+    /// CRC-32 (IEEE) of the file's bytes, 8 hex digits.
+    pub crc32: String,
+}
+
+/// Length and CRC-32 of `file` (its `rows` as the writer counted them).
+pub fn seal(file: &Path, rows: u64) -> anyhow::Result<Seal> {
+    use anyhow::Context;
+    let mut f =
+        std::fs::File::open(file).with_context(|| format!("cannot read {}", file.display()))?;
+    let (bytes, crc) = crc_of(&mut f).with_context(|| format!("cannot read {}", file.display()))?;
+    Ok(Seal {
+        rows,
+        bytes,
+        crc32: format!("{crc:08x}"),
+    })
+}
+
+fn crc_of(r: &mut dyn std::io::Read) -> std::io::Result<(u64, u32)> {
+    let mut h = crc32fast::Hasher::new();
+    let mut buf = vec![0u8; 1 << 20];
+    let mut n = 0u64;
+    loop {
+        let k = match r.read(&mut buf) {
+            Ok(0) => break,
+            Ok(k) => k,
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
+            Err(e) => return Err(e),
+        };
+        h.update(&buf[..k]);
+        n += k as u64;
+    }
+    Ok((n, h.finalize()))
+}
+
+/// Check `table` against its sidecar's [`Seal`]: the same length and CRC-32
+/// as when it was published, or an error (exit 2) naming the file, what the
+/// sidecar promises and what the file holds. A sidecar without a seal (an
+/// older cradle's) passes.
+pub fn check(table: &Path, sc: &Sidecar) -> Result<(), InputError> {
+    let Some(want) = &sc.table else {
+        return Ok(());
+    };
+    let mut f = crate::error::open_input(table, crate::error::MAX_TABLE_BYTES)?;
+    let (bytes, crc) = crc_of(&mut f).map_err(|e| InputError::Data {
+        path: table.to_path_buf(),
+        what: format!("cannot be read ({e})"),
+    })?;
+    let crc = format!("{crc:08x}");
+    if bytes != want.bytes || crc != want.crc32 {
+        return Err(InputError::Data {
+            path: table.to_path_buf(),
+            what: format!(
+                "is not the table its sidecar {} describes: {} rows in {} bytes with CRC-32 {} were published, the file has {bytes} bytes with CRC-32 {crc}{}; it was cut, edited or replaced since — run the command that made it again ({})",
+                path(table).display(),
+                want.rows,
+                want.bytes,
+                want.crc32,
+                if bytes < want.bytes { " (shorter: rows are missing)" } else { "" },
+                sc.command.join(" ")
+            ),
+        });
+    }
+    Ok(())
+}
+
+/// [`read`], then [`check`]: the sidecar of `table` with its promise kept,
+/// `Ok(None)` when it has none.
+pub fn read_checked(table: &Path) -> Result<Option<Sidecar>, InputError> {
+    let sc = read(table)?;
+    if let Some(sc) = &sc {
+        check(table, sc)?;
+    }
+    Ok(sc)
 }
 
 /// What a refined table's sidecar says of its refinement.

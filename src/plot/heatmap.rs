@@ -187,6 +187,14 @@ fn slot(vals: &[f64], z: f64) -> usize {
 pub fn plot(input: &Path, a: &Args, out: &Path) -> Result<()> {
     fonts();
     super::Format::of(out)?;
+    let sidecar = crate::output::sidecar::path(input);
+    if !sidecar.exists() {
+        eprintln!(
+            "cradle: {} has no sidecar ({}): read as a plain table, its rows unchecked",
+            input.display(),
+            sidecar.display()
+        );
+    }
     let mut t = Table::read(input)?;
     t.filter(&a.wheres)?;
     let (ix, iy, iz) = (

@@ -321,7 +321,7 @@ pub(super) fn finish(
     c: Counts,
 ) -> Result<()> {
     let (lo, hi) = c.ids;
-    let text = sidecar::text(&sidecar::Sidecar {
+    let sc = sidecar::Sidecar {
         tool: "cradle".into(),
         version: env!("CARGO_PKG_VERSION").into(),
         git_revision: sidecar::GIT_REVISION.into(),
@@ -354,6 +354,12 @@ pub(super) fn finish(
         refine: c.refine,
         fingerprint: fingerprint.to_string(),
         merged_from: None,
-    })?;
-    out.finish((&sidecar::path(&opts.out), text.as_bytes()))
+        table: None,
+    };
+    out.finish(&sidecar::path(&opts.out), c.done, |seal| {
+        sidecar::text(&sidecar::Sidecar {
+            table: Some(seal),
+            ..sc
+        })
+    })
 }
