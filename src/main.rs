@@ -112,7 +112,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 "--out",
                 &out,
                 std::slice::from_ref(&table),
-                &[hertz_cradle::output::publish::TMP],
+                hertz_cradle::output::publish::ALONE_COMPANIONS,
             )?;
             let Some(g) = hertz_cradle::output::fill::grid(&table)? else {
                 return Err(hertz_cradle::InputError::Data {
@@ -121,7 +121,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 }
                 .into());
             };
-            let n = hertz_cradle::output::publish::write_with(&target, |w| {
+            let n = hertz_cradle::output::publish::write_alone(&target, |w| {
                 hertz_cradle::output::fill::fill(&table, &g, &mut |row| {
                     w.write_all(row)
                         .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", target.display()))
@@ -142,8 +142,10 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         } => {
             let input = table.iter().chain(&trace).cloned().collect::<Vec<_>>();
             let tmp = plot::tmp_suffix(&out);
-            let out_path = guard::output("--out", &out, &input, &[tmp.as_str()])?;
+            let out_path = guard::output("--out", &out, &input, &[tmp.as_str(), ".lock"])?;
             let out = &out_path;
+            // One plot into a file at a time (they would share FILE.tmp.<ext>).
+            let _lock = OutputLock::acquire(out)?;
             match (table, trace) {
                 (_, Some(tr)) => plot::trace::plot(&tr, title.as_deref(), out)?,
                 (Some(t), None) => plot::heatmap::plot(

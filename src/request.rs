@@ -347,7 +347,12 @@ fn trace_output(name: &str, path: &Path) -> Result<PathBuf, InputError> {
         .then(|| name.into())
         .into_iter()
         .collect();
-    guard::output("--trace", path, &inputs, &[crate::output::publish::TMP])
+    guard::output(
+        "--trace",
+        path,
+        &inputs,
+        crate::output::publish::ALONE_COMPANIONS,
+    )
 }
 
 /// A checked scene, ready to run.
@@ -522,7 +527,7 @@ impl RunRequest {
             None => granular::run(beads, &plan, &mut granular::NoRows),
             // Written beside the path and published whole (a kill or a
             // full disk leaves the previous trace, never a cut-off one).
-            Some((path, _)) => crate::output::publish::write_with(path, |w| {
+            Some((path, _)) => crate::output::publish::write_alone(path, |w| {
                 let mut tw =
                     crate::output::trace::ChainTraceWriter::new(w, beads, self.trace_beads.clone())
                         .with_context(|| format!("writing {}", path.display()))?;
@@ -593,7 +598,7 @@ impl RunRequest {
         let (chain, solver) = (&self.chain, &self.solver);
         Ok(match &self.trace {
             None => simulate_chain(chain, solver, &mut Silent),
-            Some((path, every)) => crate::output::publish::write_with(path, |w| {
+            Some((path, every)) => crate::output::publish::write_alone(path, |w| {
                 let mut tw = crate::output::trace::TraceWriter::new(w, chain, *every)
                     .with_context(|| format!("writing {}", path.display()))?;
                 let o = simulate_chain(chain, solver, &mut tw);

@@ -277,15 +277,26 @@ pub fn scripts(p: &Plan) -> Result<(String, String, String)> {
 pub fn write(p: &Plan) -> Result<Vec<PathBuf>> {
     use std::os::unix::fs::PermissionsExt;
     for d in ["parts", "logs"] {
-        std::fs::create_dir_all(p.dir.join(d))
-            .with_context(|| format!("cannot create {}", p.dir.join(d).display()))?;
+        let dir = p.dir.join(d);
+        std::fs::create_dir_all(&dir).map_err(|e| crate::InputError::Data {
+            path: dir.clone(),
+            what: format!("cannot create this directory ({e}): give --dir a place you can write"),
+        })?;
     }
     let (a, m, s) = scripts(p)?;
     let mut paths = vec![];
+    // Each script written beside its name, executable, synced and renamed
+    // over it (output::publish): a kill or a full disk never leaves half a
+    // script for sbatch.
     for (name, text) in [("array.sbatch", a), ("merge.sbatch", m), ("submit.sh", s)] {
         let path = p.dir.join(name);
-        std::fs::write(&path, text).with_context(|| format!("cannot write {}", path.display()))?;
-        std::fs::set_permissions(&path, std::fs::Permissions::from_mode(0o755))?;
+        crate::output::publish::write_with(&path, |w| {
+            use std::io::Write;
+            w.get_ref()
+                .set_permissions(std::fs::Permissions::from_mode(0o755))
+                .and_then(|_| w.write_all(text.as_bytes()))
+                .with_context(|| format!("cannot write {}", path.display()))
+        })?;
         paths.push(path);
     }
     Ok(paths)

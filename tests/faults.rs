@@ -1050,3 +1050,84 @@ fn tables_are_read_only_with_their_sidecars_promise() {
         stderr(&o)
     );
 }
+
+/// Every command that writes a file holds its lock (`FILE.lock`) while it
+/// writes: with another writer holding it, `fill --out`, `run --trace` and
+/// `plot --out` into the same file exit 2 naming the holder and leave the
+/// previous file as it was (two fills at once used to mix their rows in
+/// one temporary file, one of them exiting 0).
+#[test]
+fn fill_trace_and_plot_refuse_a_file_another_writer_holds() {
+    let d = tempfile::tempdir().unwrap();
+    let sw = write_sweep(d.path(), 9, 9);
+    let refined = d.path().join("refined.toml");
+    fs::write(
+        &refined,
+        fs::read_to_string(&sw).unwrap() + "[refine]\ncolumn = \"ejected\"\nstride = 4\n",
+    )
+    .unwrap();
+    let table = d.path().join("r.csv");
+    ok(&on_cpu(&refined, &table, &[]));
+    let out = d.path().join("o.csv");
+    fs::write(&out, "previous\n").unwrap();
+    let scene = d.path().join("scene.toml");
+    let holder = fs::File::create(d.path().join("o.csv.lock")).unwrap();
+    holder.lock().unwrap();
+    for args in [
+        vec!["fill", s(&table), "--out", s(&out)],
+        vec!["run", s(&scene), "--trace", s(&out)],
+    ] {
+        refused(&args, "is being written by another cradle");
+        assert_eq!(fs::read_to_string(&out).unwrap(), "previous\n", "{args:?}");
+    }
+    let png = d.path().join("o.png");
+    let png_holder = fs::File::create(d.path().join("o.png.lock")).unwrap();
+    png_holder.lock().unwrap();
+    refused(
+        &[
+            "plot",
+            s(&table),
+            "--x",
+            "mass[2]",
+            "--y",
+            "gap",
+            "--z",
+            "ejected",
+            "--out",
+            s(&png),
+        ],
+        "is being written by another cradle",
+    );
+    assert!(!png.exists());
+    // Once the holder is gone, the same commands write.
+    drop((holder, png_holder));
+    ok(&["fill", s(&table), "--out", s(&out)]);
+    assert!(fs::read_to_string(&out).unwrap().starts_with("id,"));
+}
+
+/// `explore` of a table it cannot use exits 2 (bad input) naming the file,
+/// at once: missing, empty, a header alone, not a table, a ragged row.
+#[test]
+fn explore_refuses_unusable_tables_with_exit_2() {
+    let d = tempfile::tempdir().unwrap();
+    let cases = [
+        ("missing.csv", None),
+        ("empty.csv", Some("")),
+        ("header.csv", Some("id,mass,status\n")),
+        ("fake.csv", Some("hello world\n")),
+        ("ragged.csv", Some("id,a\n0,1\n1\n")),
+    ];
+    for (name, text) in cases {
+        let p = d.path().join(name);
+        if let Some(t) = text {
+            fs::write(&p, t).unwrap();
+        }
+        let o = cradle()
+            .args(["explore", s(&p), "--port", "0"])
+            .timeout(Duration::from_secs(60))
+            .output()
+            .unwrap();
+        assert_eq!(o.status.code(), Some(2), "{name}: {}", stderr(&o));
+        assert!(stderr(&o).contains(name), "{name}: {}", stderr(&o));
+    }
+}

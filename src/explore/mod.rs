@@ -68,8 +68,14 @@ struct Data {
     name: String,
     header: Vec<String>,
     cols: Vec<Col>,
-    /// Row of each scene id (a full grid: row i is id i).
+    /// Rows in the table.
     rows: usize,
+    /// The table's row of each scene id (its `id` column; without one, row
+    /// i is scene i): a shard's or a refined table's rows are not its ids.
+    row_of: HashMap<u64, usize>,
+    /// The solver flags the sweep ran with (the sidecar's), applied when a
+    /// scene is run again.
+    overrides: crate::engine::Overrides,
     /// The grid: per axis, its name and values (empty when not a grid).
     axes: Vec<(String, Values)>,
     dims: Vec<u64>,
@@ -85,15 +91,24 @@ fn err(code: StatusCode, msg: impl Into<String>) -> Response {
 
 fn load(path: &Path) -> Result<Data> {
     // A refined table filled to its grid, Parquet as the CSV's text.
+    let bad = |what: String| crate::InputError::Data {
+        path: path.to_path_buf(),
+        what,
+    };
     let mut r = csv::Reader::from_reader(crate::output::fill::full_csv(path)?);
-    let header: Vec<String> = r.headers()?.iter().map(str::to_string).collect();
+    let header: Vec<String> = r
+        .headers()
+        .map_err(|e| bad(format!("not a readable table ({e})")))?
+        .iter()
+        .map(str::to_string)
+        .collect();
     let n = header.len();
     let mut text: Vec<Vec<String>> = vec![vec![]; n];
     let mut nums: Vec<Vec<f64>> = vec![vec![]; n];
     let mut numeric = vec![true; n];
     let mut rows = 0;
     for rec in r.records() {
-        let rec = rec.with_context(|| format!("{}: not a readable table", path.display()))?;
+        let rec = rec.map_err(|e| bad(format!("not a readable table ({e})")))?;
         for (k, f) in rec.iter().enumerate().take(n) {
             if numeric[k] {
                 match f.trim() {
@@ -112,9 +127,11 @@ fn load(path: &Path) -> Result<Data> {
         rows += 1;
     }
     if rows == 0 {
-        anyhow::bail!("{}: the table has no rows", path.display());
+        return Err(
+            bad("has no rows (an empty file, a header alone, or not a table)".into()).into(),
+        );
     }
-    let cols = (0..n)
+    let cols: Vec<Col> = (0..n)
         .map(|k| {
             if numeric[k] {
                 Col::Num(std::mem::take(&mut nums[k]))
@@ -155,11 +172,15 @@ fn load(path: &Path) -> Result<Data> {
         Some(f) => {
             let near = path.parent().unwrap_or(Path::new(".")).join(f);
             let found = [PathBuf::from(f), near].into_iter().find(|p| p.is_file());
+            let recorded = sc.as_ref().map(|s| &s.sweep);
             match found.map(|p| Sweep::load(&p)) {
-                Some(Ok(s)) if s.total == dims.iter().product::<u64>().max(rows as u64) || axes.is_empty() => {
+                // The file must still resolve to the sweep the sidecar
+                // recorded (an edited sweep or scene file would run other
+                // scenes under this table's rows).
+                Some(Ok(s)) if serde_json::to_value(&s).ok().as_ref() == recorded => {
                     (Some(s), String::new())
                 }
-                Some(Ok(_)) => (None, format!("the sweep file {f} no longer matches the table")),
+                Some(Ok(_)) => (None, format!("the sweep file {f} (or a scene file it names) changed since this table was made: it no longer resolves to the sweep in the table's sidecar, so its scenes would not be this table's rows; restore it, or run the sweep again")),
                 Some(Err(e)) => (None, format!("the sweep file {f}: {e}")),
                 None => (
                     None,
@@ -168,7 +189,32 @@ fn load(path: &Path) -> Result<Data> {
             }
         }
     };
+    let row_of: HashMap<u64, usize> = match header.iter().position(|h| h == "id") {
+        Some(k) => {
+            let mut m = HashMap::with_capacity(rows);
+            for (r, t) in ids_text(&cols[k], rows).into_iter().enumerate() {
+                match t {
+                    Some(id) if m.insert(id, r).is_none() => {}
+                    _ => {
+                        return Err(bad(format!(
+                            "row {} has no id, or one an earlier row has: not one sweep's table",
+                            r + 1
+                        ))
+                        .into())
+                    }
+                }
+            }
+            m
+        }
+        None => (0..rows).map(|r| (r as u64, r)).collect(),
+    };
+    let overrides = sc
+        .as_ref()
+        .map(|s| overrides_of(&s.solver))
+        .unwrap_or_default();
     Ok(Data {
+        row_of,
+        overrides,
         name: path
             .file_name()
             .map_or(String::new(), |n| n.to_string_lossy().into_owned()),
@@ -181,6 +227,33 @@ fn load(path: &Path) -> Result<Data> {
         sweep_problem,
         runs: Arc::new(tokio::sync::Semaphore::new(MAX_RUNS)),
     })
+}
+
+/// Each row's id (a whole number) from the `id` column, `None` where it is not one.
+fn ids_text(col: &Col, rows: usize) -> Vec<Option<u64>> {
+    match col {
+        Col::Num(v) => v
+            .iter()
+            .map(|&x| (x >= 0.0 && x.fract() == 0.0 && x < 9.0e15).then_some(x as u64))
+            .collect(),
+        Col::Cat(..) => vec![None; rows],
+    }
+}
+
+/// The solver flags a sidecar records (`solver.flags`) as overrides.
+fn overrides_of(solver: &serde_json::Value) -> crate::engine::Overrides {
+    use crate::choice::Choice;
+    let f = &solver["flags"];
+    crate::engine::Overrides {
+        method: f["method"]
+            .as_str()
+            .and_then(crate::scene::Method::from_name),
+        precision: f["precision"]
+            .as_str()
+            .and_then(crate::scene::Precision::from_name),
+        tolerance: f["tolerance"].as_f64(),
+        ..Default::default()
+    }
 }
 
 impl Data {
@@ -349,16 +422,19 @@ async fn points(State(d): State<Arc<Data>>, Query(q): Query<HashMap<String, Stri
     Json(json!({"x": values(x), "y": values(y), "z": values(z), "id": ids})).into_response()
 }
 
-fn id_param(d: &Data, q: &HashMap<String, String>) -> Result<usize, Response> {
+/// The scene id asked for and its row in the table.
+fn id_param(d: &Data, q: &HashMap<String, String>) -> Result<(u64, usize), Response> {
     let s = q
         .get("id")
         .ok_or_else(|| err(StatusCode::BAD_REQUEST, "`id` is required"))?;
     match s.parse::<u64>() {
-        Ok(id) if (id as usize) < d.rows => Ok(id as usize),
-        Ok(id) => Err(err(
-            StatusCode::NOT_FOUND,
-            format!("no scene {id}: ids are 0 ..= {}", d.rows - 1),
-        )),
+        Ok(id) => match d.row_of.get(&id) {
+            Some(&row) => Ok((id, row)),
+            None => Err(err(
+                StatusCode::NOT_FOUND,
+                format!("no scene {id} in this table ({} rows)", d.rows),
+            )),
+        },
         Err(_) => Err(err(
             StatusCode::BAD_REQUEST,
             format!("`id` = {s:?}: not a whole number"),
@@ -367,7 +443,7 @@ fn id_param(d: &Data, q: &HashMap<String, String>) -> Result<usize, Response> {
 }
 
 async fn row(State(d): State<Arc<Data>>, Query(q): Query<HashMap<String, String>>) -> Response {
-    let id = match id_param(&d, &q) {
+    let (id, row) = match id_param(&d, &q) {
         Ok(i) => i,
         Err(e) => return e,
     };
@@ -376,7 +452,7 @@ async fn row(State(d): State<Arc<Data>>, Query(q): Query<HashMap<String, String>
         .header
         .iter()
         .enumerate()
-        .map(|(k, h)| json!([h, d.cell(k, id)]))
+        .map(|(k, h)| json!([h, d.cell(k, row)]))
         .collect();
     Json(json!({"id": id, "row": fields})).into_response()
 }
@@ -385,9 +461,9 @@ async fn row(State(d): State<Arc<Data>>, Query(q): Query<HashMap<String, String>
 /// row's own step): its row's outcome columns and its bead histories for a
 /// space-time image (at most [`HISTORY_BEADS`] beads × 2·[`HISTORY_ROWS`]
 /// rows, as f32).
-fn run_chain_scene(sweep: &Sweep, id: u64) -> Result<Json_> {
+fn run_chain_scene(sweep: &Sweep, id: u64, o: &crate::engine::Overrides) -> Result<Json_> {
     use crate::engine::granular::{self, history::History};
-    let Some(job) = sweep.chain_job(id, &Default::default())? else {
+    let Some(job) = sweep.chain_job(id, o)? else {
         anyhow::bail!("scene {id} is not a valid chain (status invalid)");
     };
     let cols = sweep.chains.as_ref().context("a chain sweep")?;
@@ -423,11 +499,11 @@ fn run_chain_scene(sweep: &Sweep, id: u64) -> Result<Json_> {
 
 /// Run scene `id` of the sweep: outcome, trace text, the other models (a
 /// chain sweep's scene: [`run_chain_scene`]).
-fn run_scene(sweep: &Sweep, id: u64) -> Result<Json_> {
+fn run_scene(sweep: &Sweep, id: u64, o: &crate::engine::Overrides) -> Result<Json_> {
     if sweep.chains.is_some() {
-        return run_chain_scene(sweep, id);
+        return run_chain_scene(sweep, id, o);
     }
-    let job = sweep.job(id, &Default::default())?;
+    let job = sweep.job(id, o)?;
     let crate::backend::Job::Run { chain, solver } = job else {
         anyhow::bail!("scene {id} is not a valid scene (status invalid)");
     };
@@ -479,7 +555,7 @@ fn run_scene(sweep: &Sweep, id: u64) -> Result<Json_> {
 
 async fn scene(State(d): State<Arc<Data>>, Query(q): Query<HashMap<String, String>>) -> Response {
     let id = match id_param(&d, &q) {
-        Ok(i) => i as u64,
+        Ok((id, _)) => id,
         Err(e) => return e,
     };
     if d.sweep.is_none() {
@@ -497,7 +573,7 @@ async fn scene(State(d): State<Arc<Data>>, Query(q): Query<HashMap<String, Strin
     let d2 = d.clone();
     let task = tokio::task::spawn_blocking(move || {
         let r = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-            run_scene(d2.sweep.as_ref().expect("checked above"), id)
+            run_scene(d2.sweep.as_ref().expect("checked above"), id, &d2.overrides)
         }));
         drop(permit);
         r
@@ -521,7 +597,7 @@ async fn scene_toml(
     Query(q): Query<HashMap<String, String>>,
 ) -> Response {
     let id = match id_param(&d, &q) {
-        Ok(i) => i as u64,
+        Ok((id, _)) => id,
         Err(e) => return e,
     };
     let Some(sweep) = &d.sweep else {

@@ -318,12 +318,14 @@ pub fn join_partial(partial: &Path, start: u64, out: &Path, schema: &Schema) -> 
     let mut src =
         File::open(partial).with_context(|| format!("cannot read {}", partial.display()))?;
     let dst = File::create(out).with_context(|| format!("cannot create {}", out.display()))?;
-    let mut j = Joiner::new(std::io::BufWriter::new(dst), schema)?;
+    let wrote = || format!("cannot write {}", out.display());
+    let mut j = Joiner::new(std::io::BufWriter::new(dst), schema).with_context(wrote)?;
     for f in frames(&mut src, start)? {
-        let (bytes, meta) = read_segment(&mut src, &f)?;
-        j.append(&bytes, &meta)?;
+        let (bytes, meta) = read_segment(&mut src, &f)
+            .with_context(|| format!("cannot read {}", partial.display()))?;
+        j.append(&bytes, &meta).with_context(wrote)?;
     }
-    let w = j.finish()?;
+    let w = j.finish().with_context(wrote)?;
     let file = w
         .into_inner()
         .map_err(|e| e.into_error())
@@ -433,7 +435,6 @@ pub fn merge(
     use arrow_array::cast::AsArray;
     use arrow_array::types::Int64Type;
     use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
-    use parquet::arrow::ProjectionMask;
 
     let dst = File::create(out).with_context(|| format!("cannot create {}", out.display()))?;
     let mut joiner: Option<(Joiner<std::io::BufWriter<File>>, SchemaRef)> = None;
@@ -447,7 +448,8 @@ pub fn merge(
         let (j, first_schema) = match &mut joiner {
             Some(j) => j,
             None => {
-                let j = Joiner::new(std::io::BufWriter::new(dst.try_clone()?), &schema)?;
+                let j = Joiner::new(std::io::BufWriter::new(dst.try_clone()?), &schema)
+                    .with_context(|| format!("cannot write {}", out.display()))?;
                 joiner.insert((j, schema.clone()))
             }
         };
@@ -461,11 +463,18 @@ pub fn merge(
         let id_col = schema
             .index_of("id")
             .map_err(|_| bad(p.path, "no `id` column".into()))?;
-        let mask = ProjectionMask::roots(meta.file_metadata().schema_descr(), [id_col]);
+        // Every column decoded (a damaged page fails here, naming the part,
+        // not after its row groups were copied); the ids checked.
         let mut next = p.ids.0;
-        for b in builder.with_projection(mask).build()? {
-            let b = b?;
-            let ids = b.column(0).as_primitive::<Int64Type>();
+        let undecodable = |e: &dyn std::fmt::Display| {
+            bad(
+                p.path,
+                format!("cannot be decoded ({e}): the file is damaged; run the shard again"),
+            )
+        };
+        for b in builder.build().map_err(|e| undecodable(&e))? {
+            let b = b.map_err(|e| undecodable(&e))?;
+            let ids = b.column(id_col).as_primitive::<Int64Type>();
             for id in ids.iter() {
                 let id = id.unwrap_or(-1);
                 if p.sparse && id >= 0 && id as u64 >= next && (id as u64) < p.ids.1 {
@@ -492,14 +501,21 @@ pub fn merge(
                 ),
             ));
         }
-        j.append(&open()?, &meta)?;
+        j.append(&open()?, &meta).with_context(|| {
+            format!(
+                "cannot write {} (copying {})",
+                out.display(),
+                p.path.display()
+            )
+        })?;
         n += meta.file_metadata().num_rows() as u64;
     }
     let Some((j, _)) = joiner else {
         anyhow::bail!("nothing to merge");
     };
     let file = j
-        .finish()?
+        .finish()
+        .with_context(|| format!("cannot write {}", out.display()))?
         .into_inner()
         .map_err(|e| e.into_error())
         .with_context(|| format!("cannot write {}", out.display()))?;

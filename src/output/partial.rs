@@ -160,12 +160,26 @@ impl Partial {
         }
         if resume && out.exists() {
             let sidecar = super::sidecar::path(out);
-            let recorded = super::sidecar::read(out)
-                .ok()
-                .flatten()
-                .map(|s| s.fingerprint);
+            let sc = super::sidecar::read(out).ok().flatten();
+            let recorded = sc.as_ref().map(|s| s.fingerprint.clone());
             return match recorded {
-                Some(f) if f == fingerprint => Ok(Opened::AlreadyComplete),
+                Some(f) if f == fingerprint => {
+                    // Complete only if it is still the table that was
+                    // published (not cut, edited or replaced since).
+                    super::sidecar::check(out, sc.as_ref().expect("read above")).map_err(
+                        |e| {
+                            let what = match e {
+                                InputError::Data { what, .. } => what,
+                                e => e.to_string(),
+                            };
+                            mismatch(
+                                out,
+                                format!("cannot resume: it {what}; run without --resume to make it again"),
+                            )
+                        },
+                    )?;
+                    Ok(Opened::AlreadyComplete)
+                }
                 found => Err(mismatch(
                     out,
                     format!(

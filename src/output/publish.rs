@@ -66,6 +66,21 @@ pub fn write_with<T>(
     r
 }
 
+/// [`write_with`] holding the output's lock (`output::lock::OutputLock`,
+/// `path` + `.lock`) throughout: a second writer of the same file (another
+/// `fill`, `run --trace` or `plot` into it) is refused, exit 2 naming the
+/// holder, instead of mixing its bytes into the same temporary file.
+pub fn write_alone<T>(
+    path: &Path,
+    write: impl FnOnce(&mut BufWriter<File>) -> Result<T>,
+) -> Result<T> {
+    let _lock = super::lock::OutputLock::acquire(path)?;
+    write_with(path, write)
+}
+
+/// Suffixes of the files [`write_alone`] writes beside its target.
+pub const ALONE_COMPANIONS: &[&str] = &[TMP, ".lock"];
+
 /// Write `bytes` to `path` atomically.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     write_with(path, |w| {

@@ -52,6 +52,14 @@ def explorer(d, name, spec_text):
     table = d / f"{name}.csv"
     subprocess.run([cradle_bin(), "sweep", spec, "--out", table, "--backend", "cpu"], check=True,
                    capture_output=True, cwd=d)
+    with serving(d, table) as url:
+        yield url, table
+
+
+@contextlib.contextmanager
+def serving(d, table):
+    """`cradle explore TABLE` (run in d) on a free port, once it answers;
+    yields the page's URL and stops the server after."""
     port = free_port()
     p = subprocess.Popen([cradle_bin(), "explore", table.name, "--port", str(port)], cwd=d,
                          stderr=subprocess.PIPE, text=True)
@@ -63,7 +71,7 @@ def explorer(d, name, spec_text):
                 break
             except (urllib.error.URLError, ConnectionError):
                 time.sleep(0.05)
-        yield url, table
+        yield url
     finally:
         p.terminate()
         p.wait(timeout=10)
@@ -255,3 +263,32 @@ def test_a_chain_sweep_opens_a_clicked_chain_as_a_space_time_image(tmp_path):
             if shot:
                 page.screenshot(path=shot)
         assert not errors, errors
+
+
+def test_a_shards_rows_are_its_ids_and_an_edited_sweep_is_not_run(tmp_path):
+    """A shard's table: row panel and scene of id k are scene k's (not the
+    k-th row's); after its sweep file is edited, scenes are refused, naming
+    why, instead of running other scenes under the table's rows."""
+    spec = tmp_path / "s.toml"
+    text = ("[scene]\nballs = 5\nvelocity = [1.0, 0, 0, 0, 0]\n"
+            "[[axis]]\nparam = \"mass[2]\"\nlogspace = [0.01, 1.0, 10]\n")
+    spec.write_text(text)
+    table = tmp_path / "part.csv"
+    subprocess.run([cradle_bin(), "sweep", spec, "--out", table, "--backend", "cpu",
+                    "--shard", "2/2"], check=True, capture_output=True, cwd=tmp_path)
+    with serving(tmp_path, table) as url:
+        status, body = get(url + "api/row?id=7")
+        assert status == 200 and body["row"][0] == ["id", "7"], body
+        row = dict(body["row"])
+        status, scene = get(url + "api/scene?id=7")
+        assert status == 200, scene
+        outcome = dict(scene["outcome"])
+        assert scene["id"] == 7 and outcome["ejected"] == row["ejected"], (outcome, row)
+        status, body = get(url + "api/row?id=2")
+        assert status == 404 and "no scene 2" in body["error"], body
+    spec.write_text(text.replace("1.0, 10]", "2.0, 10]"))
+    with serving(tmp_path, table) as url:
+        status, body = get(url + "api/scene?id=7")
+        assert status == 404 and "changed since this table was made" in body["error"], body
+        status, body = get(url + "api/row?id=7")
+        assert status == 200 and body["row"][0] == ["id", "7"], body
