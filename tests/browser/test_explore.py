@@ -10,6 +10,7 @@ screenshot to results/explorer.png (EXPLORER_SCREENSHOT overrides)."""
 import contextlib
 import json
 import os
+import re
 import shutil
 import socket
 import subprocess
@@ -118,6 +119,14 @@ def server(tmp_path_factory):
         yield served
 
 
+def sig_digits(text):
+    """Significant digits of a number as printed (0 for anything else)."""
+    m = re.fullmatch(r"-?(\d*)\.?(\d*)(?:e[-+]?\d+)?", text.strip(), re.I)
+    if not m or not (m.group(1) + m.group(2)):
+        return 0
+    return len((m.group(1) + m.group(2)).lstrip("0"))
+
+
 def get(url):
     try:
         with urllib.request.urlopen(url, timeout=30) as r:
@@ -181,8 +190,12 @@ def test_the_page_draws_the_map_and_a_click_opens_that_scene(server):
         row = rows[1 + want].split(",")
         text = details.inner_text()
         assert f"Scene {want}" in text
+        # On screen at most 6 significant digits; the full value in the cell's title.
         for name in ("mass[2]", "gap"):
-            assert row[header.index(name)] in text
+            full = row[header.index(name)]
+            assert details.locator(f'td[title="{full}"]').count() >= 1, full
+        cells = details.locator("td").all_inner_texts()
+        assert cells and all(sig_digits(t) <= 6 for t in cells), cells
         # The trace is drawn (non-blank canvas), the comparison models are there.
         drawn = page.evaluate(
             """() => { const c = document.querySelector('[data-testid=trace-plot]');
@@ -292,3 +305,50 @@ def test_a_shards_rows_are_its_ids_and_an_edited_sweep_is_not_run(tmp_path):
         assert status == 404 and "changed since this table was made" in body["error"], body
         status, body = get(url + "api/row?id=7")
         assert status == 200 and body["row"][0] == ["id", "7"], body
+
+
+def test_the_map_has_ticks_a_colour_bar_and_zooms(server):
+    """Axes with tick labels (values of the axis, log for mass[2], at most 6
+    significant digits), a colour bar (categories for `ejected`, a scale for
+    a continuous column), wheel and box zoom shown in data-x-range /
+    data-y-range and in the ticks, a double-click back to the whole map."""
+    if not Path(CHROMIUM).exists():
+        pytest.skip(f"no browser at {CHROMIUM}: apt-get install chromium")
+    url, _ = server
+    with opened(url) as (page, errors):
+        ticks = lambda testid: page.get_by_test_id(testid).locator(".tick").all_inner_texts()
+        xs, ys = ticks("x-axis"), ticks("y-axis")
+        assert len(xs) >= 3 and len(ys) >= 3, (xs, ys)
+        assert all(sig_digits(t) <= 6 for t in xs + ys), (xs, ys)
+        xv, yv = [float(t) for t in xs], [float(t) for t in ys]
+        assert all(0.0064 <= v <= 0.64 for v in xv) and xv == sorted(xv), xs
+        assert all(0 <= v <= 2e-5 for v in yv) and yv == sorted(yv), ys
+        bar = page.get_by_test_id("colorbar")
+        assert bar.get_attribute("data-kind") == "categorical"
+        page.get_by_test_id("select-colour").select_option(label="energy_left")
+        page.wait_for_function("document.querySelector('[data-testid=colorbar]').dataset.kind === 'continuous'")
+        # energy_left spans ~1e-3 below 1: labels distinct (with an offset if needed).
+        labels = page.locator("#cbticks .tick").all_inner_texts()
+        assert len(labels) >= 3 and len(set(labels)) == len(labels), labels
+        cv = page.get_by_test_id("phase-map")
+        span = lambda a: (lambda lo, hi: hi - lo)(*map(float, cv.get_attribute(a).split(",")))
+        whole = (cv.get_attribute("data-x-range"), cv.get_attribute("data-y-range"))
+        assert abs(float(whole[0].split(",")[0]) - 0.0064) < 1e-3, whole
+        box = cv.bounding_box()
+        page.mouse.move(box["x"] + box["width"] / 2, box["y"] + box["height"] / 2)
+        page.mouse.wheel(0, -400)
+        page.wait_for_function(f"document.querySelector('[data-testid=phase-map]').dataset.xRange !== {whole[0]!r}")
+        assert span("data-y-range") < float(whole[1].split(",")[1])
+        page.mouse.dblclick(box["x"] + box["width"] / 2, box["y"] + box["height"] / 2)
+        assert (cv.get_attribute("data-x-range"), cv.get_attribute("data-y-range")) == whole
+        # A box from 20% to 50% of the width and height.
+        page.mouse.move(box["x"] + 0.2 * box["width"], box["y"] + 0.2 * box["height"])
+        page.mouse.down()
+        page.mouse.move(box["x"] + 0.35 * box["width"], box["y"] + 0.35 * box["height"], steps=4)
+        page.mouse.move(box["x"] + 0.5 * box["width"], box["y"] + 0.5 * box["height"], steps=4)
+        page.mouse.up()
+        lo, hi = map(float, cv.get_attribute("data-y-range").split(","))
+        assert 0.45 * 2e-5 < lo < hi < 0.85 * 2e-5, (lo, hi)
+        assert ticks("y-axis") != ys
+        page.screenshot(path=os.environ.get("EXPLORER_ZOOM_SCREENSHOT", str(ROOT / "results" / "explorer_zoom.png")))
+        assert not errors, errors
