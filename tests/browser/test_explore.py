@@ -351,4 +351,25 @@ def test_the_map_has_ticks_a_colour_bar_and_zooms(server):
         assert 0.45 * 2e-5 < lo < hi < 0.85 * 2e-5, (lo, hi)
         assert ticks("y-axis") != ys
         page.screenshot(path=os.environ.get("EXPLORER_ZOOM_SCREENSHOT", str(ROOT / "results" / "explorer_zoom.png")))
+        # A click: the colour column along x through that cell (slice plot),
+        # and two scenes compared (pin one, open another).
+        page.mouse.dblclick(box["x"] + 5, box["y"] + 5)
+        cell = lambda ix, iy: (box["x"] + (ix + 0.5) * box["width"] / 60,
+                               box["y"] + (40 - 1 - iy + 0.5) * box["height"] / 40)
+        page.mouse.click(*cell(12, 30))
+        details = page.get_by_test_id("scene-details")
+        page.wait_for_function("document.querySelector('[data-testid=scene-details]').dataset.sceneId === String(12 * 40 + 30)")
+        sl = page.get_by_test_id("slice-plot")
+        assert sl.is_visible() and sl.get_attribute("data-points") == "60" and sl.get_attribute("data-at") == "12"
+        assert distinct_colours(page, "slice-plot", 7) >= 3
+        page.locator("#pin").click()
+        page.mouse.click(*cell(40, 5))
+        cmp = page.get_by_test_id("compare")
+        cmp.wait_for(timeout=20_000)
+        heads = cmp.locator("tr").first.inner_text()
+        assert "scene 510 (pinned)" in heads and "scene 1605" in heads, heads
+        differs = cmp.locator("tr.differs th").all_inner_texts()
+        assert "mass[2]" in differs and "gap" in differs and "id" in differs, differs
+        assert sl.get_attribute("data-at") == "40"
+        page.screenshot(path=os.environ.get("EXPLORER_COMPARE_SCREENSHOT", str(ROOT / "results" / "explorer_compare.png")))
         assert not errors, errors
