@@ -203,6 +203,11 @@ def test_the_page_draws_the_map_and_a_click_opens_that_scene(server):
                        let n = 0; for (let i = 3; i < d.length; i += 4) n += d[i] > 0; return n; }"""
         )
         assert drawn > 500
+        # The diagram's axes: tick labels of position and time, <= 6 digits.
+        trace = page.get_by_test_id("trace-plot")
+        for a in ("data-x-ticks", "data-y-ticks"):
+            labels = [t for t in trace.get_attribute(a).split("|") if not t.startswith("offset")]
+            assert len(labels) >= 3 and all(0 < sig_digits(t.lstrip("+")) <= 6 or t.lstrip("+") == "0" for t in labels), (a, labels)
         assert "hard-sphere" in text and "closure" in text
         shot = os.environ.get("EXPLORER_SCREENSHOT", str(ROOT / "results" / "explorer.png"))
         page.screenshot(path=shot)
@@ -271,6 +276,11 @@ def test_a_chain_sweep_opens_a_clicked_chain_as_a_space_time_image(tmp_path):
             page.get_by_test_id("spacetime-image").wait_for(timeout=20_000)
             colours = distinct_colours(page, "spacetime-image", 7)
             assert colours > 10, colours
+            # Axes: bead numbers within 0 ..= 119 up the side, time along the bottom.
+            img = page.get_by_test_id("spacetime-image")
+            beads = [float(t) for t in img.get_attribute("data-y-ticks").split("|")]
+            assert len(beads) >= 3 and all(0 <= b <= 119 for b in beads), beads
+            assert len(img.get_attribute("data-x-ticks").split("|")) >= 3
             assert "energy_transmitted" in details.inner_text()
             shot = os.environ.get("EXPLORER_CHAIN_SCREENSHOT")
             if shot:
