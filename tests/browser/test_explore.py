@@ -340,6 +340,17 @@ def test_the_map_has_ticks_a_colour_bar_and_zooms(server):
         # energy_left spans ~1e-3 below 1: labels distinct (with an offset if needed).
         labels = page.locator("#cbticks .tick").all_inner_texts()
         assert len(labels) >= 3 and len(set(labels)) == len(labels), labels
+        # A log colour scale for a positive column spanning decades (energy_error).
+        page.get_by_test_id("select-colour").select_option(label="energy_error")
+        page.wait_for_function("document.querySelector('#cbticks .tick') !== null")
+        assert bar.get_attribute("data-scale") == "linear"
+        page.get_by_test_id("log-colour").check()
+        page.wait_for_function("document.querySelector('[data-testid=colorbar]').dataset.scale === 'log'")
+        logs = [float(t) for t in page.locator("#cbticks .tick").all_inner_texts()]
+        assert len(logs) >= 2 and all(v > 0 for v in logs), logs
+        page.get_by_test_id("log-colour").uncheck()
+        page.get_by_test_id("select-colour").select_option(label="energy_left")
+        page.wait_for_function("document.querySelector('[data-testid=colorbar]').dataset.scale === 'linear'")
         cv = page.get_by_test_id("phase-map")
         span = lambda a: (lambda lo, hi: hi - lo)(*map(float, cv.get_attribute(a).split(",")))
         whole = (cv.get_attribute("data-x-range"), cv.get_attribute("data-y-range"))
