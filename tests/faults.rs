@@ -934,6 +934,19 @@ fn trace_and_plot_keep_the_previous_file_when_the_disk_fills() {
     assert_eq!(left.len(), 2, "temporary files left: {left:?}");
 }
 
+/// [`write_sweep`]'s 9 × 9 sweep, and the same with a `[refine]` of
+/// `ejected` (stride 4) in `refined.toml`.
+fn write_refined(dir: &Path) -> (PathBuf, PathBuf) {
+    let sw = write_sweep(dir, 9, 9);
+    let refined = dir.join("refined.toml");
+    fs::write(
+        &refined,
+        fs::read_to_string(&sw).unwrap() + "[refine]\ncolumn = \"ejected\"\nstride = 4\n",
+    )
+    .unwrap();
+    (sw, refined)
+}
+
 /// Flip one byte of `path` at `at` (a digit to another digit, anything else
 /// to its complement).
 fn flip(path: &Path, at: usize) {
@@ -955,13 +968,7 @@ fn flip(path: &Path, at: usize) {
 #[test]
 fn tables_are_read_only_with_their_sidecars_promise() {
     let d = tempfile::tempdir().unwrap();
-    let sw = write_sweep(d.path(), 9, 9);
-    let refined = d.path().join("refined.toml");
-    fs::write(
-        &refined,
-        fs::read_to_string(&sw).unwrap() + "[refine]\ncolumn = \"ejected\"\nstride = 4\n",
-    )
-    .unwrap();
+    let (sw, refined) = write_refined(d.path());
     let (plain, cut, pq) = (
         d.path().join("plain.csv"),
         d.path().join("cut.csv"),
@@ -1059,13 +1066,7 @@ fn tables_are_read_only_with_their_sidecars_promise() {
 #[test]
 fn fill_trace_and_plot_refuse_a_file_another_writer_holds() {
     let d = tempfile::tempdir().unwrap();
-    let sw = write_sweep(d.path(), 9, 9);
-    let refined = d.path().join("refined.toml");
-    fs::write(
-        &refined,
-        fs::read_to_string(&sw).unwrap() + "[refine]\ncolumn = \"ejected\"\nstride = 4\n",
-    )
-    .unwrap();
+    let (_, refined) = write_refined(d.path());
     let table = d.path().join("r.csv");
     ok(&on_cpu(&refined, &table, &[]));
     let out = d.path().join("o.csv");

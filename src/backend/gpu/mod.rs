@@ -47,6 +47,20 @@ pub use shaders::{
     WIDE_BODY,
 };
 
+/// A compute shader's storage buffer at `binding` of a bind-group layout.
+pub(super) fn storage(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::COMPUTE,
+        ty: wgpu::BindingType::Buffer {
+            ty: wgpu::BufferBindingType::Storage { read_only },
+            has_dynamic_offset: false,
+            min_binding_size: None,
+        },
+        count: None,
+    }
+}
+
 /// Outcomes with their places in a batch.
 type Placed = Vec<(usize, Outcome)>;
 
@@ -88,16 +102,6 @@ impl Gpu {
             ..Default::default()
         }))
         .with_context(|| format!("cannot open a device on {}", info.name))?;
-        let storage = |binding, read_only| wgpu::BindGroupLayoutEntry {
-            binding,
-            visibility: wgpu::ShaderStages::COMPUTE,
-            ty: wgpu::BindingType::Buffer {
-                ty: wgpu::BufferBindingType::Storage { read_only },
-                has_dynamic_offset: false,
-                min_binding_size: None,
-            },
-            count: None,
-        };
         // The shader's signature: headers, params (read); out_real, out_u32,
         // queue, workers (read and write).
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
