@@ -440,6 +440,9 @@ impl RunRequest {
     ) -> Result<RunRequest, Error> {
         granular::check_solver(&solver)?;
         let beads = Beads::from_scene(&scene);
+        if let Some(why) = granular::unrunnable(&granular::plan(&beads, &solver, None)) {
+            return Err(flag("scene", name, &format!("a chain that can be run: {why}")).into());
+        }
         let record = scene.chain.as_ref().and_then(|c| c.record.clone());
         let (mut trace, mut trace_beads) = (None, vec![]);
         if let Some(path) = &settings.trace {

@@ -592,4 +592,34 @@ fn a_granular_chain_runs_with_its_probes_walls_and_record() {
         assert!(e.contains(says), "{flags:?}: {e}");
     }
     assert!(!std::path::Path::new(o).exists());
+    // A chain whose step underflows (a striker at 1e300 m/s) never advances:
+    // `run` refuses it, a sweep makes it an `invalid` row at once (it used to
+    // run 5e7 steps of zero length to the step cap).
+    let fast = write(
+        &dir,
+        "fast.toml",
+        "balls = 80\nradius = 0.005\n[launch]\nballs = 1\nvelocity = 1e300\n",
+    );
+    let e = bad_input(&["run", &fast]);
+    assert!(e.contains("underflows"), "{e}");
+    let sw = write(
+        &dir,
+        "fast_sweep.toml",
+        "scene = \"fast.toml\"\n[[axis]]\nparam = \"launch.velocity\"\nvalues = [0.1, 1e300]\n",
+    );
+    let out = dir.path().join("fast.csv");
+    success(&[
+        "sweep",
+        &sw,
+        "--out",
+        out.to_str().unwrap(),
+        "--backend",
+        "cpu",
+    ]);
+    let text = std::fs::read_to_string(&out).unwrap();
+    let rows: Vec<&str> = text.lines().collect();
+    assert!(
+        rows[1].contains(",ok,") && rows[2].contains(",invalid,"),
+        "{text}"
+    );
 }

@@ -26,6 +26,10 @@ impl Sweep {
         let solver = Solver::resolve(&scene, o)?;
         let beads = Beads::from_scene(&scene);
         let plan = granular::plan(&beads, &solver, None);
+        // A step that underflows makes no runnable chain: an `invalid` row.
+        if granular::unrunnable(&plan).is_some() {
+            return Ok(None);
+        }
         Ok(Some(ChainJob { beads, plan }))
     }
 

@@ -304,6 +304,19 @@ pub fn check_solver(solver: &Solver) -> Result<(), crate::error::InputError> {
     Ok(())
 }
 
+/// Why `plan` cannot be run: its step is not a positive normal number (a
+/// velocity, force or stiffness so large, or a mass so small, that the
+/// chain's time scale underflows: the run would never advance and only meet
+/// the step cap). `None`: it can.
+pub fn unrunnable(plan: &Plan) -> Option<String> {
+    (!(plan.h.is_normal() && plan.h > 0.0)).then(|| {
+        format!(
+            "its step would be {:e} s (the chain's time scale underflows: an extreme velocity, force, stiffness or mass); such a chain never advances",
+            plan.h
+        )
+    })
+}
+
 /// The step, substep weights and end of one chain run.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Plan {
