@@ -1132,3 +1132,73 @@ fn explore_refuses_unusable_tables_with_exit_2() {
         assert!(stderr(&o).contains(name), "{name}: {}", stderr(&o));
     }
 }
+
+/// An output directory that cannot be written (made immutable with
+/// `chattr +i`, which binds root too) is exit 2 naming the path for every
+/// command that writes, before any work; skipped where chattr is not
+/// available (not root, or a filesystem without the attribute).
+#[test]
+fn an_unwritable_output_directory_is_exit_2_for_every_writer() {
+    let d = tempfile::tempdir().unwrap();
+    let (sw, refined) = write_refined(d.path());
+    let (table, filled_from) = (d.path().join("t.csv"), d.path().join("r.csv"));
+    ok(&on_cpu(&sw, &table, &[]));
+    ok(&on_cpu(&refined, &filled_from, &[]));
+    let ro = d.path().join("ro");
+    fs::create_dir(&ro).unwrap();
+    let immutable = Std::new("chattr").arg("+i").arg(&ro).status();
+    if !immutable.is_ok_and(|s| s.success()) || fs::write(ro.join("probe"), "x").is_ok() {
+        eprintln!("SKIPPED: chattr +i is not available here");
+        return;
+    }
+    struct Unlock<'a>(&'a Path);
+    impl Drop for Unlock<'_> {
+        fn drop(&mut self) {
+            let _ = Std::new("chattr").arg("-i").arg(self.0).status();
+        }
+    }
+    let _unlock = Unlock(&ro);
+    let o = |name: &str| s(&ro.join(name)).to_string();
+    let scene = d.path().join("scene.toml");
+    let cases: Vec<Vec<String>> = vec![
+        on_cpu(&sw, &ro.join("a.csv"), &[])
+            .iter()
+            .map(|a| a.to_string())
+            .collect(),
+        vec!["merge".into(), s(&table).into(), "--out".into(), o("m.csv")],
+        vec![
+            "fill".into(),
+            s(&filled_from).into(),
+            "--out".into(),
+            o("f.csv"),
+        ],
+        vec![
+            "plot".into(),
+            s(&table).into(),
+            "--x".into(),
+            "mass[2]".into(),
+            "--y".into(),
+            "gap".into(),
+            "--z".into(),
+            "ejected".into(),
+            "--out".into(),
+            o("p.png"),
+        ],
+        vec!["run".into(), s(&scene).into(), "--trace".into(), o("t.csv")],
+        vec![
+            "slurm".into(),
+            s(&sw).into(),
+            "--shards".into(),
+            "2".into(),
+            "--dir".into(),
+            o("sl"),
+            "--out".into(),
+            o("x.csv"),
+        ],
+    ];
+    for args in cases {
+        let e = refused(&args, s(&ro));
+        assert!(!e.contains("panicked"), "{e}");
+    }
+    assert_eq!(fs::read_dir(&ro).unwrap().count(), 0, "nothing written");
+}
