@@ -947,6 +947,25 @@ fn write_refined(dir: &Path) -> (PathBuf, PathBuf) {
     (sw, refined)
 }
 
+/// `cradle plot TABLE --x mass[2] --y gap --z ejected --out OUT` (the map of
+/// [`write_sweep`]'s tables).
+fn plot_args(table: &Path, out: &Path) -> Vec<String> {
+    [
+        "plot",
+        s(table),
+        "--x",
+        "mass[2]",
+        "--y",
+        "gap",
+        "--z",
+        "ejected",
+        "--out",
+        s(out),
+    ]
+    .map(String::from)
+    .to_vec()
+}
+
 /// Flip one byte of `path` at `at` (a digit to another digit, anything else
 /// to its complement).
 fn flip(path: &Path, at: usize) {
@@ -983,20 +1002,7 @@ fn tables_are_read_only_with_their_sidecars_promise() {
     assert_eq!(seal["bytes"], fs::metadata(&plain).unwrap().len(), "{seal}");
     let out = d.path().join("o.csv");
     let png = d.path().join("o.png");
-    let plot = |t: &Path| {
-        vec![
-            "plot".to_string(),
-            s(t).into(),
-            "--x".into(),
-            "mass[2]".into(),
-            "--y".into(),
-            "gap".into(),
-            "--z".into(),
-            "ejected".into(),
-            "--out".into(),
-            s(&png).into(),
-        ]
-    };
+    let plot = |t: &Path| plot_args(t, &png);
     // Every reader takes the intact tables.
     ok(&["merge", s(&cut), "--out", s(&out)]);
     ok(&["fill", s(&cut), "--out", s(&out)]);
@@ -1085,18 +1091,7 @@ fn fill_trace_and_plot_refuse_a_file_another_writer_holds() {
     let png_holder = fs::File::create(d.path().join("o.png.lock")).unwrap();
     png_holder.lock().unwrap();
     refused(
-        &[
-            "plot",
-            s(&table),
-            "--x",
-            "mass[2]",
-            "--y",
-            "gap",
-            "--z",
-            "ejected",
-            "--out",
-            s(&png),
-        ],
+        &plot_args(&table, &png),
         "is being written by another cradle",
     );
     assert!(!png.exists());
@@ -1172,18 +1167,7 @@ fn an_unwritable_output_directory_is_exit_2_for_every_writer() {
             "--out".into(),
             o("f.csv"),
         ],
-        vec![
-            "plot".into(),
-            s(&table).into(),
-            "--x".into(),
-            "mass[2]".into(),
-            "--y".into(),
-            "gap".into(),
-            "--z".into(),
-            "ejected".into(),
-            "--out".into(),
-            o("p.png"),
-        ],
+        plot_args(&table, &ro.join("p.png")),
         vec!["run".into(), s(&scene).into(), "--trace".into(), o("t.csv")],
         vec![
             "slurm".into(),

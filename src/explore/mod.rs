@@ -192,7 +192,7 @@ fn load(path: &Path) -> Result<Data> {
     let row_of: HashMap<u64, usize> = match header.iter().position(|h| h == "id") {
         Some(k) => {
             let mut m = HashMap::with_capacity(rows);
-            for (r, t) in ids_text(&cols[k], rows).into_iter().enumerate() {
+            for (r, t) in ids_of(&cols[k], rows).into_iter().enumerate() {
                 match t {
                     Some(id) if m.insert(id, r).is_none() => {}
                     _ => {
@@ -208,10 +208,7 @@ fn load(path: &Path) -> Result<Data> {
         }
         None => (0..rows).map(|r| (r as u64, r)).collect(),
     };
-    let overrides = sc
-        .as_ref()
-        .map(|s| overrides_of(&s.solver))
-        .unwrap_or_default();
+    let overrides = sc.as_ref().map(|s| s.overrides()).unwrap_or_default();
     Ok(Data {
         row_of,
         overrides,
@@ -230,29 +227,13 @@ fn load(path: &Path) -> Result<Data> {
 }
 
 /// Each row's id (a whole number) from the `id` column, `None` where it is not one.
-fn ids_text(col: &Col, rows: usize) -> Vec<Option<u64>> {
+fn ids_of(col: &Col, rows: usize) -> Vec<Option<u64>> {
     match col {
         Col::Num(v) => v
             .iter()
             .map(|&x| (x >= 0.0 && x.fract() == 0.0 && x < 9.0e15).then_some(x as u64))
             .collect(),
         Col::Cat(..) => vec![None; rows],
-    }
-}
-
-/// The solver flags a sidecar records (`solver.flags`) as overrides.
-fn overrides_of(solver: &serde_json::Value) -> crate::engine::Overrides {
-    use crate::choice::Choice;
-    let f = &solver["flags"];
-    crate::engine::Overrides {
-        method: f["method"]
-            .as_str()
-            .and_then(crate::scene::Method::from_name),
-        precision: f["precision"]
-            .as_str()
-            .and_then(crate::scene::Precision::from_name),
-        tolerance: f["tolerance"].as_f64(),
-        ..Default::default()
     }
 }
 

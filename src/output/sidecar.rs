@@ -203,7 +203,33 @@ pub fn read(table: &Path) -> Result<Option<Sidecar>, InputError> {
         })
 }
 
+/// The solver flags a sweep ran with, as its sidecar records them
+/// (`solver.flags`; read back by [`Sidecar::overrides`]).
+pub fn flags(o: &crate::engine::Overrides) -> serde_json::Value {
+    serde_json::json!({
+        "method": o.method.map(|m| m.name()),
+        "precision": o.precision.map(|p| p.name()),
+        "tolerance": o.tolerance,
+    })
+}
+
 impl Sidecar {
+    /// The solver flags the sweep ran with ([`flags`]), as overrides.
+    pub fn overrides(&self) -> crate::engine::Overrides {
+        use crate::choice::Choice;
+        let f = &self.solver["flags"];
+        crate::engine::Overrides {
+            method: f["method"]
+                .as_str()
+                .and_then(crate::scene::Method::from_name),
+            precision: f["precision"]
+                .as_str()
+                .and_then(crate::scene::Precision::from_name),
+            tolerance: f["tolerance"].as_f64(),
+            ..Default::default()
+        }
+    }
+
     /// The sweep's axes as the sidecar records them: name and values.
     pub fn axes(&self) -> Option<Vec<(String, crate::sweep::axis::Values)>> {
         self.sweep["axes"]

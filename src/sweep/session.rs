@@ -331,11 +331,7 @@ pub(super) fn finish(
         backend: backend.name().into(),
         adapter: backend.adapter(),
         solver: serde_json::json!({
-            "flags": {
-                "method": opts.overrides.method.map(|m| m.name()),
-                "precision": opts.overrides.precision.map(|p| p.name()),
-                "tolerance": opts.overrides.tolerance,
-            },
+            "flags": sidecar::flags(&opts.overrides),
             "base_scene": match sweep.job(lo.min(sweep.total.saturating_sub(1)), &opts.overrides)? {
                 Job::Run { solver, .. } => serde_json::to_value(solver)?,
                 Job::Invalid { .. } => serde_json::Value::Null,

@@ -18,7 +18,7 @@ use super::device::map_read;
 use super::Gpu;
 use crate::backend::ChainJob;
 use crate::engine::granular::observe::{FirstPeak, WallWatch, FIRST_PEAK_REALS, WALL_WATCH_REALS};
-use crate::engine::granular::run::{self, overlap_ratio, Watch, CHECK_EVERY};
+use crate::engine::granular::run::{self, contact_radius, overlap_ratio, Watch, CHECK_EVERY};
 use crate::engine::granular::step::{State, MARGIN_EXTRA, SINE_FACTORS};
 use crate::engine::granular::{Beads, ChainOutcome, Plan, END_MARGIN};
 use crate::engine::Status;
@@ -216,31 +216,10 @@ impl Offsets {
     }
 }
 
-/// A chain started on the host: what finishing it needs besides the device's state.
-struct Started {
-    /// The energy the run is measured against when it has no pulse.
-    e_start: f64,
-}
-
-/// The smaller radius of each contact (run::overlap_ratio's), 1 for an absent wall.
-fn contact_radii(b: &Beads) -> Vec<f64> {
-    let n = b.n;
-    (0..=n)
-        .map(|j| match j {
-            0 => b.radius[0],
-            j if j == n => b.radius[n - 1],
-            j => b.radius[j - 1].min(b.radius[j]),
-        })
-        .collect()
-}
-
-/// Pack one chain at reals offset `base` (its header, its reals, its probes).
-fn pack(
-    job: &ChainJob,
-    base: usize,
-    probe_at: usize,
-    reals: &mut Vec<f64>,
-) -> (ChainHead, Started) {
+/// Pack one chain at reals offset `base` (its header, its reals, its
+/// probes); also returns the energy at the start, which a run without a
+/// pulse is measured against.
+fn pack(job: &ChainJob, base: usize, probe_at: usize, reals: &mut Vec<f64>) -> (ChainHead, f64) {
     let (b, plan): (&Beads, &Plan) = (&job.beads, &job.plan);
     let n = b.n;
     let w = plan.weights;
@@ -267,7 +246,9 @@ fn pack(
     r[o.k..o.k + n + 1].copy_from_slice(&b.k);
     r[o.d0..o.d0 + n + 1].copy_from_slice(&b.d0);
     r[o.f0..o.f0 + n + 1].copy_from_slice(&b.f0);
-    r[o.r..o.r + n + 1].copy_from_slice(&contact_radii(b));
+    for j in 0..=n {
+        r[o.r + j] = contact_radius(b, j);
+    }
     r[o.p..o.p + n + 1].copy_from_slice(&st.p);
     r[o.v..o.v + n].copy_from_slice(&st.v);
     r[o.a..o.a + n].copy_from_slice(&st.a);
@@ -324,12 +305,11 @@ fn pack(
         ..Default::default()
     };
     reals.extend_from_slice(&r);
-    let e_start = b.energy(&st.p, &st.v);
-    (head, Started { e_start })
+    (head, b.energy(&st.p, &st.v))
 }
 
 /// The outcome of a chain from its header and reals read back.
-fn finish(job: &ChainJob, h: &ChainHead, reals: &[f64], started: &Started) -> ChainOutcome {
+fn finish(job: &ChainJob, h: &ChainHead, reals: &[f64], e_start: f64) -> ChainOutcome {
     let (b, plan) = (&job.beads, &job.plan);
     let n = b.n;
     let base = h.sc as usize;
@@ -367,7 +347,7 @@ fn finish(job: &ChainJob, h: &ChainHead, reals: &[f64], started: &Started) -> Ch
         watch.width = run::fwhm(&v[h.wlo as usize..h.whi as usize]);
     }
     let e_ref = if b.pulse.is_none() {
-        Some(started.e_start)
+        Some(e_start)
     } else if h.snaps & SNAP_ENERGY != 0 {
         Some(b.energy(&at(h.o_snapp, n + 1), &at(h.o_snapev, n)))
     } else {
@@ -458,27 +438,19 @@ impl Gpu {
             (o.len * 8) as u64
         };
         let mut out = Vec::with_capacity(jobs.len());
-        let mut start = 0;
-        while start < jobs.len() {
-            let (mut end, mut size) = (start, 0u64);
-            while end < jobs.len()
-                && end - start < self.max_workgroups as usize
-                && size + bytes(jobs[end]) <= self.max_binding
-            {
-                size += bytes(jobs[end]);
-                end += 1;
-            }
-            if end == start {
+        let max = self.max_workgroups as usize;
+        for part in super::parts(jobs.len(), max, self.max_binding, |k| bytes(jobs[k])) {
+            let first = jobs[part.start];
+            if bytes(first) > self.max_binding {
                 bail!(
                     "a chain of {} beads needs {} bytes of device memory in one binding; {} allows {}",
-                    jobs[start].beads.n,
-                    bytes(jobs[start]),
+                    first.beads.n,
+                    bytes(first),
                     self.info.name,
                     self.max_binding
                 );
             }
-            out.extend(self.chain_part(&pipe, &jobs[start..end])?);
-            start = end;
+            out.extend(self.chain_part(&pipe, &jobs[part])?);
         }
         Ok(out)
     }
@@ -486,7 +458,7 @@ impl Gpu {
     /// One part on the device: packed, run to the end of every chain, read back.
     fn chain_part(&self, pipe: &ChainPipe, jobs: &[&ChainJob]) -> Result<Vec<ChainOutcome>> {
         let mut heads = Vec::with_capacity(jobs.len());
-        let mut started = Vec::with_capacity(jobs.len());
+        let mut e_start = Vec::with_capacity(jobs.len());
         let mut reals = Vec::new();
         let mut probes: Vec<u32> = Vec::new();
         for j in jobs {
@@ -499,7 +471,7 @@ impl Gpu {
             let (h, s) = pack(j, reals.len(), probes.len(), &mut reals);
             probes.extend(j.beads.probes.iter().map(|&i| i as u32));
             heads.push(h);
-            started.push(s);
+            e_start.push(s);
         }
         if probes.is_empty() {
             probes.push(0);
@@ -613,12 +585,12 @@ impl Gpu {
         self.stats.completed();
         jobs.iter()
             .zip(&heads)
-            .zip(&started)
+            .zip(&e_start)
             .map(|((j, h), s)| {
                 if h.done == 0 {
                     return Err(anyhow!("a chain came back unfinished from the device"));
                 }
-                Ok(finish(j, h, &reals, s))
+                Ok(finish(j, h, &reals, *s))
             })
             .collect()
     }

@@ -36,7 +36,7 @@ use crate::engine::real::{Df64, Real};
 use crate::engine::{plan, simulate_chain, Chain, Outcome, Silent, Solver, UNSTEPPED};
 use crate::scene::Precision;
 pub use adapter::{find_adapter, quiet_mesa_without_session, Want};
-pub use chains::{chain_shader, ChainHead, CHAIN_WG};
+pub use chains::chain_shader;
 use device::WORKGROUP;
 pub use probe::DF64_PROBE_OPS;
 use profile::Tracker;
@@ -59,6 +59,30 @@ pub(super) fn storage(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEnt
         },
         count: None,
     }
+}
+
+/// Consecutive parts of `n` items, each of at most `max_items` items whose
+/// `bytes` sum to at most `max_bytes` (the device's workgroup count and
+/// largest storage binding), or of one item alone if that one is larger.
+pub(super) fn parts(
+    n: usize,
+    max_items: usize,
+    max_bytes: u64,
+    bytes: impl Fn(usize) -> u64,
+) -> Vec<std::ops::Range<usize>> {
+    let mut out = vec![];
+    let mut start = 0;
+    while start < n {
+        let (mut end, mut size) = (start, 0u64);
+        while end < n && end - start < max_items && size + bytes(end) <= max_bytes {
+            size += bytes(end);
+            end += 1;
+        }
+        let end = end.max(start + 1);
+        out.push(start..end);
+        start = end;
+    }
+    out
 }
 
 /// Outcomes with their places in a batch.
@@ -194,19 +218,10 @@ impl Gpu {
             (layout::len(PARAMS, nb, nw).max(layout::len(STATE, nb, nw)) as u64) * real
         };
         let mut out = Vec::with_capacity(jobs.len());
-        let mut start = 0;
-        while start < jobs.len() {
-            let (mut end, mut size) = (start, 0u64);
-            while end < jobs.len()
-                && end - start < max_scenes
-                && size + bytes(&jobs[end]) <= self.max_binding
-            {
-                size += bytes(&jobs[end]);
-                end += 1;
-            }
-            let end = end.max(start + 1);
-            out.extend(self.dispatch::<R>(pipe, &jobs[start..end], wide.then_some(class))?);
-            start = end;
+        for part in parts(jobs.len(), max_scenes, self.max_binding, |k| {
+            bytes(&jobs[k])
+        }) {
+            out.extend(self.dispatch::<R>(pipe, &jobs[part], wide.then_some(class))?);
         }
         Ok(out)
     }

@@ -94,6 +94,16 @@ pub fn run_with(b: &Beads, plan: &Plan, rows: &mut dyn Rows, whole: bool) -> Cha
     finish(b, plan, st, obs, t, status, e_ref, max_ratio)
 }
 
+/// The radius an overlap of contact j is measured against: the smaller of
+/// its beads' (a wall's contact: its bead's).
+pub fn contact_radius(b: &Beads, j: usize) -> f64 {
+    match j {
+        0 => b.radius[0],
+        j if j == b.n => b.radius[b.n - 1],
+        j => b.radius[j - 1].min(b.radius[j]),
+    }
+}
+
 /// Largest overlap over the smaller radius of its contact, contacts lo ..= hi.
 pub fn overlap_ratio(b: &Beads, st: &State, lo: usize, hi: usize) -> f64 {
     let n = b.n;
@@ -102,12 +112,7 @@ pub fn overlap_ratio(b: &Beads, st: &State, lo: usize, hi: usize) -> f64 {
         if b.k[j] == 0.0 {
             continue;
         }
-        let r = match j {
-            0 => b.radius[0],
-            j if j == n => b.radius[n - 1],
-            j => b.radius[j - 1].min(b.radius[j]),
-        };
-        m = m.max((b.d0[j] + st.p[j]) / r);
+        m = m.max((b.d0[j] + st.p[j]) / contact_radius(b, j));
     }
     m
 }
