@@ -4,6 +4,8 @@
 //! Routes (nothing else is served; no path from a request reaches the file
 //! system):
 //! - `GET /`: the page (`page.html`).
+//! - `GET /vendor/uPlot.js`, `GET /vendor/uPlot.css`: the plotting library
+//!   the page draws with (uPlot 1.6.32, MIT, vendored in `vendor/`).
 //! - `GET /api/meta`: the table's columns, its grid (axes, their values),
 //!   the file's name.
 //! - `GET /api/map?x=AXIS&y=AXIS&z=COLUMN&at=I,J,…`: the z values of the
@@ -56,6 +58,9 @@ pub const MAX_RUNS: usize = 2;
 pub const RUN_TIMEOUT_S: u64 = 20;
 
 const PAGE: &str = include_str!("page.html");
+/// uPlot (<https://github.com/leeoniya/uPlot>, v1.6.32, MIT: `vendor/uPlot.LICENSE`).
+const UPLOT_JS: &str = include_str!("vendor/uPlot.iife.min.js");
+const UPLOT_CSS: &str = include_str!("vendor/uPlot.min.css");
 
 /// One column: numbers (NaN where empty) or categories.
 enum Col {
@@ -354,19 +359,47 @@ async fn map(State(d): State<Arc<Data>>, Query(q): Query<HashMap<String, String>
         .filter(|&k| k != ax && k != ay)
         .map(|k| at[k] * steps[k])
         .sum();
-    let mut vals: Vec<Json_> = Vec::with_capacity(nx * ny);
-    for iy in 0..ny {
-        for ix in 0..nx {
-            let id = (base + ix as u64 * steps[ax] + iy as u64 * steps[ay]) as usize;
-            vals.push(match &d.cols[z] {
-                Col::Num(v) if v[id].is_finite() => json!(v[id]),
-                Col::Num(_) => Json_::Null,
-                Col::Cat(c, _) => json!(c[id]),
-            });
-        }
+    let (sx, sy) = (steps[ax], steps[ay]);
+    let ids = (0..ny)
+        .flat_map(|iy| (0..nx).map(move |ix| (base + ix as u64 * sx + iy as u64 * sy) as usize));
+    let reply = |z| MapReply {
+        nx,
+        ny,
+        base,
+        sx,
+        sy,
+        z,
+    };
+    // Serialized straight from typed values (a `Value` per cell would cost
+    // more than the rest of the 10^6-cell reply).
+    match &d.cols[z] {
+        Col::Num(v) => Json(reply(MapZ::Num(
+            ids.map(|id| v[id].is_finite().then_some(v[id])).collect(),
+        )))
+        .into_response(),
+        Col::Cat(c, _) => Json(reply(MapZ::Cat(ids.map(|id| c[id]).collect()))).into_response(),
     }
-    Json(json!({"nx": nx, "ny": ny, "base": base, "sx": steps[ax], "sy": steps[ay], "z": vals}))
-        .into_response()
+}
+
+/// `/api/map`'s reply: the x × y slice's z values, row by row (y
+/// outermost), and where its cells are in the table (id = base + ix·sx +
+/// iy·sy).
+#[derive(serde::Serialize)]
+struct MapReply {
+    nx: usize,
+    ny: usize,
+    base: u64,
+    sx: u64,
+    sy: u64,
+    z: MapZ,
+}
+
+/// Numbers (null where empty) or category codes.
+#[derive(serde::Serialize)]
+#[serde(untagged)]
+enum MapZ {
+    Num(Vec<Option<f64>>),
+    Cat(Vec<u32>),
 }
 
 /// A table that is not a grid (a point list, a sampling design): x, y and
@@ -460,9 +493,15 @@ fn run_chain_scene(sweep: &Sweep, id: u64, o: &crate::engine::Overrides) -> Resu
         .zip(cols.texts(&o))
         .map(|(name, text)| json!([name, text]))
         .collect();
-    let f32s = |rows: &[Vec<f64>]| -> Vec<Vec<f32>> {
+    // f32's shortest decimal (JSON numbers are f64: an f32 written as one
+    // would take 17 digits where 7 or fewer carry all it holds).
+    let f32s = |rows: &[Vec<f64>]| -> Vec<Vec<f64>> {
         rows.iter()
-            .map(|r| r.iter().map(|&x| x as f32).collect())
+            .map(|r| {
+                r.iter()
+                    .map(|&x| (x as f32).to_string().parse().unwrap_or(f64::NAN))
+                    .collect()
+            })
             .collect()
     };
     Ok(json!({
@@ -610,10 +649,30 @@ async fn page() -> Html<&'static str> {
     Html(PAGE)
 }
 
+/// A vendored file, cached by the browser for the server's life.
+fn asset(kind: &'static str, body: &'static str) -> Response {
+    (
+        [
+            (header::CONTENT_TYPE, kind),
+            (header::CACHE_CONTROL, "max-age=3600"),
+        ],
+        body,
+    )
+        .into_response()
+}
+
+async fn uplot_js() -> Response {
+    asset("text/javascript; charset=utf-8", UPLOT_JS)
+}
+
+async fn uplot_css() -> Response {
+    asset("text/css; charset=utf-8", UPLOT_CSS)
+}
+
 async fn not_found() -> Response {
     err(
         StatusCode::NOT_FOUND,
-        "no such page: the explorer serves / and /api/{meta,map,points,row,scene,scene.toml}",
+        "no such page: the explorer serves /, /vendor/uPlot.{js,css} and /api/{meta,map,points,row,scene,scene.toml}",
     )
 }
 
@@ -622,6 +681,8 @@ pub fn serve(table: &Path, host: &str, port: u16, ready: &dyn Fn(&str)) -> Resul
     let data = Arc::new(load(table)?);
     let app = Router::new()
         .route("/", get(page))
+        .route("/vendor/uPlot.js", get(uplot_js))
+        .route("/vendor/uPlot.css", get(uplot_css))
         .route("/api/meta", get(meta))
         .route("/api/map", get(map))
         .route("/api/points", get(points))

@@ -95,6 +95,45 @@ impl Axis {
         }
     }
 
+    /// Where the ticks go (plot coordinates): on a log axis 1, 2 and 5 ×
+    /// 10^k within the axis when it spans at most three decades, else powers
+    /// of ten (every k-th, at most ~8); elsewhere plotters' own choice for
+    /// [`Axis::ticks`] labels.
+    fn key_points(&self) -> Vec<f64> {
+        let (a, b) = (self.edges[0], self.edges[self.edges.len() - 1]);
+        if !self.log || self.integers > 0 {
+            return RangedCoordf64::from(a..b).key_points(self.ticks());
+        }
+        let (lo, hi) = (a.min(b), a.max(b));
+        let mults: &[f64] = if hi - lo <= 3.0 {
+            &[1.0, 2.0, 5.0]
+        } else {
+            &[1.0]
+        };
+        // Decades with a tick: those of 1, 2, 5 × 10^k, or the powers inside.
+        let k0 = if mults.len() > 1 {
+            lo.floor()
+        } else {
+            (lo - 1e-9).ceil()
+        } as i32;
+        let k1 = (hi + 1e-9).floor() as i32;
+        let every = if mults.len() > 1 {
+            1
+        } else {
+            ((k1 - k0 + 1) as usize).div_ceil(8)
+        };
+        let mut t = vec![];
+        for k in (k0..=k1).step_by(every) {
+            for m in mults {
+                let c = (m * 10f64.powi(k)).log10();
+                if c >= lo - 1e-9 && c <= hi + 1e-9 {
+                    t.push(c);
+                }
+            }
+        }
+        t
+    }
+
     /// Tick labels to ask for: one per category or per integer value.
     fn ticks(&self) -> usize {
         match &self.cats {
@@ -102,6 +141,39 @@ impl Axis {
             None if self.integers > 0 => self.integers + 1,
             None => 10,
         }
+    }
+}
+
+/// A plot coordinate with its ticks at given places (plotters'
+/// `WithKeyPoints` has no label formatter for f64).
+struct Ticked {
+    inner: RangedCoordf64,
+    keys: Vec<f64>,
+}
+
+impl Ticked {
+    fn new(r: std::ops::Range<f64>, keys: Vec<f64>) -> Ticked {
+        Ticked {
+            inner: r.into(),
+            keys,
+        }
+    }
+}
+
+impl Ranged for Ticked {
+    type FormatOption = plotters::coord::ranged1d::DefaultFormatting;
+    type ValueType = f64;
+
+    fn map(&self, v: &f64, limit: (i32, i32)) -> i32 {
+        self.inner.map(v, limit)
+    }
+
+    fn key_points<H: plotters::coord::ranged1d::KeyPointHint>(&self, _: H) -> Vec<f64> {
+        self.keys.clone()
+    }
+
+    fn range(&self) -> std::ops::Range<f64> {
+        self.inner.range()
     }
 }
 
@@ -317,7 +389,10 @@ fn draw<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, g: &Grid) -> Result<(
         .margin(15)
         .x_label_area_size(55)
         .y_label_area_size(85)
-        .build_cartesian_2d(ex[0]..ex[ex.len() - 1], ey[0]..ey[ey.len() - 1])
+        .build_cartesian_2d(
+            Ticked::new(ex[0]..ex[ex.len() - 1], g.ax.key_points()),
+            Ticked::new(ey[0]..ey[ey.len() - 1], g.ay.key_points()),
+        )
         .map_err(drawing)?;
     let fx = |v: &f64| g.ax.format(*v);
     let fy = |v: &f64| g.ay.format(*v);
@@ -423,4 +498,33 @@ pub fn colour_strip<DB: DrawingBackend>(
     }))
     .map_err(drawing)?;
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn labels(values: &[f64]) -> Vec<String> {
+        let a = Axis::new("x", values, None);
+        a.key_points().iter().map(|&c| a.format(c)).collect()
+    }
+
+    #[test]
+    fn log_axes_tick_at_one_two_five_or_powers_of_ten() {
+        let two_decades: Vec<f64> = (0..60)
+            .map(|k| 0.0064 * 100f64.powf(k as f64 / 59.0))
+            .collect();
+        assert_eq!(
+            labels(&two_decades),
+            ["0.01", "0.02", "0.05", "0.1", "0.2", "0.5"]
+        );
+        let eight_decades: Vec<f64> = (0..9).map(|k| 10f64.powi(k - 12)).collect();
+        assert_eq!(
+            labels(&eight_decades),
+            ["1.00e-12", "1.00e-10", "1.00e-8", "1.00e-6", "1.00e-4"]
+        );
+        // A linear axis keeps plotters' choice.
+        let lin: Vec<f64> = (0..40).map(|k| k as f64 * 5e-7).collect();
+        assert!(labels(&lin).len() >= 3);
+    }
 }

@@ -97,13 +97,21 @@ def opened(url):
             browser.close()
 
 
+# The pixels under a plot's testid element (a canvas, or a uPlot chart's
+# plot area: the part of its canvas below it).
+PIXELS = """(id) => { const el = document.querySelector(`[data-testid=${id}]`);
+    const c = el.tagName === 'CANVAS' ? el : el.closest('.uplot').querySelector('canvas');
+    const r = el.getBoundingClientRect(), cr = c.getBoundingClientRect(), k = c.width / cr.width;
+    return c.getContext('2d').getImageData(Math.round((r.left - cr.left) * k), Math.round((r.top - cr.top) * k),
+                                           Math.round(r.width * k), Math.round(r.height * k)).data; }"""
+
+
 def distinct_colours(page, testid, every):
-    """How many colours a canvas holds, looking at every `every`-th pixel."""
+    """How many colours a plot's area holds, looking at every `every`-th pixel."""
     return page.evaluate(
-        """([id, every]) => { const c = document.querySelector(`[data-testid=${id}]`);
-                   const d = c.getContext('2d').getImageData(0, 0, c.width, c.height).data;
+        f"""([id, every]) => {{ const d = ({PIXELS})(id);
                    const s = new Set(); for (let i = 0; i < d.length; i += 4 * every) s.add(d[i] + ',' + d[i+1] + ',' + d[i+2]);
-                   return s.size; }""",
+                   return s.size; }}""",
         [testid, every],
     )
 
@@ -198,9 +206,8 @@ def test_the_page_draws_the_map_and_a_click_opens_that_scene(server):
         assert cells and all(sig_digits(t) <= 6 for t in cells), cells
         # The trace is drawn (non-blank canvas), the comparison models are there.
         drawn = page.evaluate(
-            """() => { const c = document.querySelector('[data-testid=trace-plot]');
-                       const d = c.getContext('2d').getImageData(0, 0, c.width, c.height).data;
-                       let n = 0; for (let i = 3; i < d.length; i += 4) n += d[i] > 0; return n; }"""
+            f"""() => {{ const d = ({PIXELS})('trace-plot');
+                       let n = 0; for (let i = 3; i < d.length; i += 4) n += d[i] > 0; return n; }}"""
         )
         assert drawn > 500
         # The diagram's axes: tick labels of position and time, <= 6 digits.
@@ -238,7 +245,7 @@ def test_a_sampled_table_is_drawn_as_points_and_a_click_opens_the_nearest(tmp_pa
             pts = page.evaluate("pts")
             px, py, _ = pts[17]
             box = cv.bounding_box()
-            page.mouse.click(box["x"] + px * box["width"] / 600, box["y"] + py * box["height"] / 600)
+            page.mouse.click(box["x"] + px, box["y"] + py)
             want = min(pts, key=lambda q: (q[0] - px) ** 2 + (q[1] - py) ** 2)[2]
             details = page.get_by_test_id("scene-details")
             assert details.get_attribute("data-scene-id") == str(int(want))
@@ -282,9 +289,15 @@ def test_a_chain_sweep_opens_a_clicked_chain_as_a_space_time_image(tmp_path):
             assert len(beads) >= 3 and all(0 <= b <= 119 for b in beads), beads
             assert len(img.get_attribute("data-x-ticks").split("|")) >= 3
             assert "energy_transmitted" in details.inner_text()
-            shot = os.environ.get("EXPLORER_CHAIN_SCREENSHOT")
-            if shot:
-                page.screenshot(path=shot)
+            # The same chain coloured by contact force (>= 0: from white up).
+            page.get_by_test_id("select-field").select_option("f")
+            page.wait_for_function("document.querySelector('[data-testid=spacetime-image]').dataset.field === 'f'")
+            assert distinct_colours(page, "spacetime-image", 7) > 10
+            bar = [float(t) for t in page.get_by_test_id("spacetime-colorbar").get_attribute("data-ticks").split("|")]
+            assert len(bar) >= 3 and min(bar) == 0, bar
+            page.get_by_test_id("select-field").select_option("v")
+            page.wait_for_function("document.querySelector('[data-testid=spacetime-image]').dataset.field === 'v'")
+            page.screenshot(path=os.environ.get("EXPLORER_CHAIN_SCREENSHOT", str(ROOT / "results" / "explorer_chain.png")))
         assert not errors, errors
 
 
@@ -393,4 +406,30 @@ def test_the_map_has_ticks_a_colour_bar_and_zooms(server):
         assert "mass[2]" in differs and "gap" in differs and "id" in differs, differs
         assert sl.get_attribute("data-at") == "40"
         page.screenshot(path=os.environ.get("EXPLORER_COMPARE_SCREENSHOT", str(ROOT / "results" / "explorer_compare.png")))
+        # Brushing: a drag along the slice plot's x highlights the map's
+        # cells in that range of mass[2] — whole columns (40 cells each) —
+        # a box also limits the value; a click on the plot clears it.
+        sb = sl.bounding_box()
+        page.mouse.move(sb["x"] + 0.2 * sb["width"], sb["y"] + 0.5 * sb["height"])
+        page.mouse.down()
+        page.mouse.move(sb["x"] + 0.4 * sb["width"], sb["y"] + 0.5 * sb["height"], steps=4)
+        page.mouse.move(sb["x"] + 0.6 * sb["width"], sb["y"] + 0.5 * sb["height"], steps=4)
+        page.mouse.up()
+        page.wait_for_function("document.querySelector('[data-testid=phase-map]').dataset.brushed !== undefined")
+        columns = int(sl.get_attribute("data-brush-cells"))
+        lo, hi = map(float, sl.get_attribute("data-brush").split(","))
+        # mass[2] is logspace(0.0064, 0.64, 60): the columns inside [lo, hi].
+        inside = [k for k in range(60) if lo <= 0.0064 * 100 ** (k / 59) <= hi]
+        assert 15 <= columns <= 30 and columns == len(inside), (columns, lo, hi)
+        assert int(cv.get_attribute("data-brushed")) == 40 * columns
+        page.screenshot(path=os.environ.get("EXPLORER_BRUSH_SCREENSHOT", str(ROOT / "results" / "explorer_brush.png")))
+        page.mouse.move(sb["x"] + 0.3 * sb["width"], sb["y"] + 0.1 * sb["height"])
+        page.mouse.down()
+        page.mouse.move(sb["x"] + 0.5 * sb["width"], sb["y"] + 0.5 * sb["height"], steps=4)
+        page.mouse.move(sb["x"] + 0.7 * sb["width"], sb["y"] + 0.9 * sb["height"], steps=4)
+        page.mouse.up()
+        page.wait_for_function(f"document.querySelector('[data-testid=slice-plot]').dataset.brush !== '{lo},{hi}'")
+        assert int(cv.get_attribute("data-brushed")) <= 40 * int(sl.get_attribute("data-brush-cells"))
+        page.mouse.click(sb["x"] + 0.5 * sb["width"], sb["y"] + 0.5 * sb["height"])
+        page.wait_for_function("document.querySelector('[data-testid=phase-map]').dataset.brushed === undefined")
         assert not errors, errors
