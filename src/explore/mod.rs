@@ -6,8 +6,8 @@
 //! - `GET /`: the page (`page.html`).
 //! - `GET /vendor/uPlot.js`, `GET /vendor/uPlot.css`: the plotting library
 //!   the page draws with (uPlot 1.6.32, MIT, vendored in `vendor/`).
-//! - `GET /api/meta`: the table's columns, its grid (axes, their values),
-//!   the file's name.
+//! - `GET /api/meta`: the table's columns (with their units), its grid
+//!   (axes, their values and units), the file's name.
 //! - `GET /api/map?x=AXIS&y=AXIS&z=COLUMN&at=I,J,…`: the z values of the
 //!   x × y slice of the grid at the given indices of the other axes.
 //! - `GET /api/points?x=COLUMN&y=COLUMN&z=COLUMN`: x, y, z and id of every
@@ -44,6 +44,7 @@ use serde_json::{json, Value as Json_};
 
 use crate::engine::{simulate_chain, Model, Silent};
 use crate::output::trace::TraceWriter;
+use crate::output::units::unit;
 use crate::sweep::axis::{Value, Values};
 use crate::sweep::Sweep;
 
@@ -273,7 +274,7 @@ async fn meta(State(d): State<Arc<Data>>) -> Response {
         .iter()
         .zip(&d.cols)
         .map(|(h, c)| match c {
-            Col::Num(_) => json!({"name": h, "kind": "number"}),
+            Col::Num(_) => json!({"name": h, "kind": "number", "unit": unit(h)}),
             Col::Cat(_, l) => json!({"name": h, "kind": "category", "labels": l}),
         })
         .collect();
@@ -287,7 +288,7 @@ async fn meta(State(d): State<Arc<Data>>) -> Response {
                     Value::Text(t) => json!(t),
                 })
                 .collect();
-            json!({"name": name, "values": vals, "log": matches!(v, Values::Logspace { .. })})
+            json!({"name": name, "values": vals, "log": matches!(v, Values::Logspace { .. }), "unit": unit(name)})
         })
         .collect();
     Json(json!({

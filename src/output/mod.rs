@@ -12,6 +12,7 @@ pub mod publish;
 pub mod row;
 pub mod sidecar;
 pub mod trace;
+pub mod units;
 
 use crate::choice::Choice;
 

@@ -114,29 +114,4 @@ pub fn drawing<E: std::fmt::Debug>(e: E) -> anyhow::Error {
     anyhow::anyhow!("drawing failed: {e:?}")
 }
 
-/// Physical unit of a column, from its name (docs/SPEC.md §4 keys and outcome columns).
-pub fn unit(col: &str) -> Option<&'static str> {
-    let base = col.split('[').next().unwrap_or(col);
-    let base = base.split('.').next_back().unwrap_or(base);
-    Some(match base {
-        "gap" | "radius" | "length" | "height" | "max_overlap_m" => "m",
-        "mass" => "kg",
-        "density" => "kg/m³",
-        "young_modulus" => "Pa",
-        "velocity" => "m/s",
-        "gravity" => "m/s²",
-        "duration" | "t_contact" | "t_release" | "dt" | "t" => "s",
-        "air_drag" => "1/s",
-        _ if base.starts_with("v_") => "m/s",
-        _ if base.starts_with("x_") => "m",
-        _ => return None,
-    })
-}
-
-/// An axis or colour-bar label: the column and its unit.
-pub fn label(col: &str) -> String {
-    match unit(col) {
-        Some(u) => format!("{col} ({u})"),
-        None => col.to_string(),
-    }
-}
+pub use crate::output::units::{label, unit};

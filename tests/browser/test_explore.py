@@ -160,6 +160,12 @@ def test_bad_requests_get_json_errors_and_the_server_keeps_serving(server):
         assert status == code and needle in body["error"], (path, status, body)
     status, body = get(url + "api/row?id=3")
     assert status == 200 and body["row"][0] == ["id", "3"]
+    # The plotting library comes from the binary, and the table's units with the axes.
+    with urllib.request.urlopen(url + "vendor/uPlot.js", timeout=30) as r:
+        assert r.status == 200 and "javascript" in r.headers["Content-Type"] and b"uPlot" in r.read(200)
+    status, body = get(url + "api/meta")
+    units = {a["name"]: a["unit"] for a in body["axes"]}
+    assert units == {"mass[2]": "kg", "gap": "m"}, units
 
 
 def test_the_page_draws_the_map_and_a_click_opens_that_scene(server):
@@ -346,6 +352,17 @@ def test_the_map_has_ticks_a_colour_bar_and_zooms(server):
         xv, yv = [float(t) for t in xs], [float(t) for t in ys]
         assert all(0.0064 <= v <= 0.64 for v in xv) and xv == sorted(xv), xs
         assert all(0 <= v <= 2e-5 for v in yv) and yv == sorted(yv), ys
+        # Hovering a cell: a tooltip with its x, y and colour value (6 digits).
+        cv = page.get_by_test_id("phase-map")
+        box = cv.bounding_box()
+        page.mouse.move(box["x"] + 12.5 * box["width"] / 60, box["y"] + (40 - 1 - 30 + 0.5) * box["height"] / 40)
+        tip = page.get_by_test_id("map-tooltip")
+        tip.wait_for(timeout=5_000)
+        lines = dict(l.split(" = ") for l in tip.inner_text().splitlines())
+        assert set(lines) == {"mass[2]", "gap", "ejected"}, lines
+        assert abs(float(lines["mass[2]"]) / (0.0064 * 100 ** (12 / 59)) - 1) < 1e-5, lines
+        assert abs(float(lines["gap"]) / (30 * 2e-5 / 39) - 1) < 1e-4 and lines["ejected"] in ("1", "2"), lines
+        assert all(sig_digits(v) <= 6 for v in lines.values()), lines
         bar = page.get_by_test_id("colorbar")
         assert bar.get_attribute("data-kind") == "categorical"
         page.get_by_test_id("select-colour").select_option(label="energy_left")
