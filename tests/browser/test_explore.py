@@ -256,6 +256,16 @@ def test_a_sampled_table_is_drawn_as_points_and_a_click_opens_the_nearest(tmp_pa
             details = page.get_by_test_id("scene-details")
             assert details.get_attribute("data-scene-id") == str(int(want))
             page.get_by_test_id("trace-plot").wait_for(timeout=20_000)
+            # A dragged box zooms both axes; a double-click shows every point again.
+            whole = (cv.get_attribute("data-x-ticks"), cv.get_attribute("data-y-ticks"))
+            page.mouse.move(box["x"] + 0.2 * box["width"], box["y"] + 0.2 * box["height"])
+            page.mouse.down()
+            page.mouse.move(box["x"] + 0.5 * box["width"], box["y"] + 0.5 * box["height"], steps=5)
+            page.mouse.up()
+            page.wait_for_function(f"document.querySelector('[data-testid=phase-map]').dataset.yTicks !== {whole[1]!r}")
+            assert cv.get_attribute("data-x-ticks") != whole[0]
+            page.mouse.dblclick(box["x"] + 0.5 * box["width"], box["y"] + 0.5 * box["height"])
+            assert (cv.get_attribute("data-x-ticks"), cv.get_attribute("data-y-ticks")) == whole
         assert not errors, errors
 
 
