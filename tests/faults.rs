@@ -1186,3 +1186,104 @@ fn an_unwritable_output_directory_is_exit_2_for_every_writer() {
     }
     assert_eq!(fs::read_dir(&ro).unwrap().count(), 0, "nothing written");
 }
+
+/// `merge` and `fill` fail at each publication (merge: its sidecar, then
+/// its table; fill: its table) without a cut-off file under the output's
+/// name, and run again give the bytes of an undisturbed run. A failure
+/// between merge's two renames leaves the previous table beside the new
+/// sidecar: every reader refuses that pair, naming the command to re-run.
+#[test]
+fn merge_and_fill_publish_whole_files_or_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let p = |n: &str| d.join(n).display().to_string();
+    let (sw, refined) = write_refined(d);
+    for k in 1..=2 {
+        ok(&on_cpu(
+            &sw,
+            &d.join(format!("p{k}.csv")),
+            &["--shard", &format!("{k}/2")],
+        ));
+    }
+    ok(&on_cpu(&refined, &d.join("r.csv"), &[]));
+    let merge = |out: &str| {
+        vec![
+            "merge".to_string(),
+            p("p1.csv"),
+            p("p2.csv"),
+            "--out".into(),
+            p(out),
+        ]
+    };
+    let fill = |out: &str| vec!["fill".to_string(), p("r.csv"), "--out".into(), p(out)];
+    ok(&merge("m_ref.csv")
+        .iter()
+        .map(|a| a.as_str())
+        .collect::<Vec<_>>());
+    ok(&fill("f_ref.csv")
+        .iter()
+        .map(|a| a.as_str())
+        .collect::<Vec<_>>());
+    type Args<'a> = &'a dyn Fn(&str) -> Vec<String>;
+    let cases: [(&str, Args, u64); 3] = [("m", &merge, 1), ("m", &merge, 2), ("f", &fill, 1)];
+    for (name, args, k) in cases {
+        let out = format!("{name}{k}.csv");
+        let o = cradle()
+            .args(args(&out))
+            .env("CRADLE_FAILPOINT", format!("publish:{k}"))
+            .output()
+            .unwrap();
+        let e = stderr(&o);
+        assert_eq!(o.status.code(), Some(1), "{name} publish:{k}: {e}");
+        assert!(
+            e.contains("No space left on device") && e.contains(&out),
+            "{e}"
+        );
+        assert!(
+            !d.join(&out).exists(),
+            "{name} publish:{k}: a failed run published its table"
+        );
+        assert!(!d.join(format!("{out}.tmp")).exists());
+        ok(&args(&out).iter().map(|a| a.as_str()).collect::<Vec<_>>());
+        let want = fs::read(d.join(format!("{name}_ref.csv"))).unwrap();
+        assert_eq!(fs::read(d.join(&out)).unwrap(), want, "{name} publish:{k}");
+    }
+    // The previous table under the new sidecar (merge failed between its renames).
+    let other = d.join("other.toml");
+    fs::write(
+        &other,
+        fs::read_to_string(&sw)
+            .unwrap()
+            .replace("0.5, 9]", "0.6, 9]"),
+    )
+    .unwrap();
+    for k in 1..=2 {
+        ok(&on_cpu(
+            &other,
+            &d.join(format!("q{k}.csv")),
+            &["--shard", &format!("{k}/2")],
+        ));
+    }
+    let before = fs::read(d.join("m1.csv")).unwrap();
+    let o = cradle()
+        .args(["merge", &p("q1.csv"), &p("q2.csv"), "--out", &p("m1.csv")])
+        .env("CRADLE_FAILPOINT", "publish:2")
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert_eq!(
+        fs::read(d.join("m1.csv")).unwrap(),
+        before,
+        "the previous table is untouched"
+    );
+    let png = d.join("m1.png");
+    let e = refused(
+        &plot_args(&d.join("m1.csv"), &png),
+        "is not the table its sidecar",
+    );
+    assert!(
+        e.contains("run the command that made it again") && e.contains("q1.csv"),
+        "{e}"
+    );
+    assert!(!png.exists());
+}
