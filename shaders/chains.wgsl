@@ -202,7 +202,8 @@ fn step(st: Step) {
         if (j + 1u < s) {
             c = 0.5 * (wj + wts[j + 1u]) * h;
         }
-        let on = has_pulse && t < pdur;
+        // step::pulse_on: by the step's start, not the substep's time.
+        let on = has_pulse && st.t0 < pdur;
         var f: f64 = 0.0;
         if (on) {
             f = pforce * pulse_sin(t, omega);
@@ -423,6 +424,12 @@ fn top() {
         nhi += 1u;
     }
     var t1 = (f64(nhi) * 4294967296.0 + f64(nlo)) * R[sc + SC_H];
+    if ((hd.flags & F_PULSE) != 0u) {
+        let tau = R[sc + SC_PULSE_DURATION];
+        if (abs(t1 - tau) <= 1e-9 * R[sc + SC_H]) {
+            t1 = tau;
+        }
+    }
     if ((hd.flags & F_DURATION) != 0u) {
         let d = R[sc + SC_DURATION];
         if (t1 > d * (1.0 - 1e-12)) {

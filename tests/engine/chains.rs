@@ -166,6 +166,62 @@ fn chain_outcomes_meet_the_tolerance() {
     }
 }
 
+/// A pulse's end is a kink in its force. The plan puts it on a step
+/// boundary and a step feels the pulse by its start (`step::pulse_on`), so
+/// on a chain whose contacts never open (precompressed, a weak pulse) every
+/// method keeps its own order: halving the step divides kahanli6's error
+/// by 2^6 and yoshida4's by 2^4 (with τ inside a step both fell as h^2).
+#[test]
+fn a_pulse_ends_on_a_step_and_the_methods_keep_their_orders() {
+    let text = |dt: f64| {
+        format!(
+            "balls = 60\nradius = 0.005\n[walls]\nleft = true\nright = true\nprecompression = 10.0\n\
+             [pulse]\nbead = 0\nforce = 0.5\nduration = 2e-5\n[probes]\nbeads = [10, 50]\n\
+             [stop]\nduration = 3e-4\n[solver]\ndt = {dt:e}\n"
+        )
+    };
+    let tau = 2e-5;
+    let run = |dt: f64, m: Method| {
+        let (s, b) = chain(&text(dt));
+        let solver = Solver::resolve(
+            &s,
+            &Overrides {
+                method: Some(m),
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        let plan = granular::plan(&b, &solver, None);
+        // τ is a whole number of steps, the step no longer than asked for.
+        let n = tau / plan.h;
+        assert!(
+            (n - n.round()).abs() < 1e-9 && plan.h <= dt,
+            "{} steps to τ",
+            n
+        );
+        (granular::run(&b, &plan, &mut NoRows).v, plan.h)
+    };
+    let (reference, _) = run(tau / 4000.0, Method::KahanLi6);
+    let scale = reference.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    let err = |v: &[f64]| {
+        v.iter()
+            .zip(&reference)
+            .fold(0.0f64, |e, (a, b)| e.max((a - b).abs()))
+            / scale
+    };
+    // dt that do not divide τ: the plan shrinks them onto it.
+    for (m, order, n) in [(Method::KahanLi6, 6.0, 10.5), (Method::Yoshida4, 4.0, 20.5)] {
+        let ((vc, hc), (vf, hf)) = (run(tau / n, m), run(tau / (2.0 * n), m));
+        let (coarse, fine) = (err(&vc), err(&vf));
+        let seen = (coarse / fine).ln() / (hc / hf).ln();
+        assert!(
+            (seen - order).abs() < 0.3,
+            "{}: order {seen:.2} ({coarse:e} -> {fine:e})",
+            m.name()
+        );
+    }
+}
+
 #[test]
 fn trace_rows_fall_on_the_clock_with_the_tolerance_values() {
     use hertz_cradle::engine::granular::step::State;

@@ -58,8 +58,15 @@ pub fn run_with(b: &Beads, plan: &Plan, rows: &mut dyn Rows, whole: bool) -> Cha
             status = Status::TimeCap;
             break;
         }
-        // Steps end at k·h exactly; the last one lands on the duration.
+        // Steps end at k·h exactly; the one nearest a pulse's end lands on
+        // it (the plan put it there, but for rounding: the step after must
+        // start at τ, `step::pulse_on`); the last one lands on the duration.
         let mut t1 = (st.steps + 1) as f64 * plan.h;
+        if let Some(p) = &b.pulse {
+            if (t1 - p.duration).abs() <= 1e-9 * plan.h {
+                t1 = p.duration;
+            }
+        }
         if let Some(d) = plan.duration {
             if t1 > d * (1.0 - 1e-12) {
                 t1 = d;

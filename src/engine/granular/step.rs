@@ -53,7 +53,7 @@ impl State {
             lo: 0,
             hi: n,
         };
-        forces(b, &mut s, 0.0);
+        forces(b, &mut s, 0.0, pulse_on(b, 0.0));
         if !whole {
             s.shrink(b, weights.len(), 0.0);
         }
@@ -97,10 +97,21 @@ impl State {
     }
 }
 
-/// Excess forces of contacts lo ..= hi and accelerations of beads lo .. hi
-/// at time `t` (the pulse's phase).
+/// Whether the pulse pushes during the step that starts at `t0`: a step
+/// that starts before the pulse ends feels sin(ωt) at every substep, even
+/// one past τ (the sine's smooth continuation), and a step that starts at
+/// or after τ feels nothing. With τ on a step boundary ([`super::plan`])
+/// every step then integrates a smooth force, and the methods keep their
+/// order; a step across τ would see the force's kink.
 #[inline(always)]
-fn forces(b: &Beads, s: &mut State, t: f64) {
+pub fn pulse_on(b: &Beads, t0: f64) -> bool {
+    b.pulse.as_ref().is_some_and(|p| t0 < p.duration)
+}
+
+/// Excess forces of contacts lo ..= hi and accelerations of beads lo .. hi
+/// at time `t` (the pulse's phase; `on`: [`pulse_on`] of the step).
+#[inline(always)]
+fn forces(b: &Beads, s: &mut State, t: f64, on: bool) {
     let (lo, hi) = (s.lo, s.hi);
     let e = &mut s.e[lo..=hi];
     let (k, d0, f0, p) = (&b.k[lo..=hi], &b.d0[lo..=hi], &b.f0[lo..=hi], &s.p[lo..=hi]);
@@ -114,7 +125,7 @@ fn forces(b: &Beads, s: &mut State, t: f64) {
         a[i] = (e[i] - e[i + 1]) * im[i];
     }
     if let Some(pl) = &b.pulse {
-        if t < pl.duration && (lo..hi).contains(&pl.bead) {
+        if on && (lo..hi).contains(&pl.bead) {
             let f = pl.force * pulse_sin(t, pl.omega());
             s.a[pl.bead] += f * b.inv_mass[pl.bead];
         }
@@ -156,7 +167,7 @@ pub fn half_sine(x: f64) -> f64 {
     x * p
 }
 
-/// sin(ωt) of a half-sine pulse, ω = π/τ (0 ≤ t < τ).
+/// sin(ωt) of a half-sine pulse, ω = π/τ (t within a step of [0, τ]).
 #[inline(always)]
 pub fn pulse_sin(t: f64, omega: f64) -> f64 {
     half_sine(omega * t)
@@ -227,11 +238,12 @@ unsafe fn step_avx2(b: &Beads, s: &mut State, t0: f64, h: f64, w: &[f64], whole:
 #[inline(always)]
 fn step_portable(b: &Beads, s: &mut State, t0: f64, h: f64, w: &[f64], whole: bool) {
     let mut t = t0;
+    let on = pulse_on(b, t0);
     kick(s, 0.5 * w[0] * h);
     for (j, &wj) in w.iter().enumerate() {
         drift(s, wj * h);
         t += wj * h;
-        forces(b, s, t);
+        forces(b, s, t, on);
         let c = match w.get(j + 1) {
             Some(next) => 0.5 * (wj + next) * h,
             None => 0.5 * wj * h,
