@@ -311,6 +311,9 @@ def test_a_chain_sweep_opens_a_clicked_chain_as_a_space_time_image(tmp_path):
             assert distinct_colours(page, "spacetime-image", 7) > 10
             bar = [float(t) for t in page.get_by_test_id("spacetime-colorbar").get_attribute("data-ticks").split("|")]
             assert len(bar) >= 3 and min(bar) == 0, bar
+            # The colour bar is its own canvas, painted from white up.
+            assert page.evaluate("document.querySelector('[data-testid=spacetime-colorbar]').width") == 12
+            assert distinct_colours(page, "spacetime-colorbar", 1) > 10
             page.get_by_test_id("select-field").select_option("v")
             page.wait_for_function("document.querySelector('[data-testid=spacetime-image]').dataset.field === 'v'")
             page.screenshot(path=os.environ.get("EXPLORER_CHAIN_SCREENSHOT", str(ROOT / "results" / "explorer_chain.png")))
