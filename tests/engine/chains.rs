@@ -222,6 +222,22 @@ fn a_pulse_ends_on_a_step_and_the_methods_keep_their_orders() {
     }
 }
 
+/// With a trace and a pulse, the step divides both `every` and τ where it
+/// can, and `every` alone (the rows' clock) where it cannot.
+#[test]
+fn a_trace_and_a_pulse_share_the_step_when_they_can() {
+    let (s, b) = chain(
+        "balls = 60\nradius = 0.005\n[walls]\nleft = true\nright = true\nprecompression = 10.0\n\
+         [pulse]\nbead = 0\nforce = 0.5\nduration = 2e-5\n[stop]\nduration = 3e-4\n",
+    );
+    let solver = Solver::resolve(&s, &Overrides::default()).unwrap();
+    let whole = |x: f64| (x - x.round()).abs() < 1e-9 * x.max(1.0);
+    let both = granular::plan(&b, &solver, Some(3e-5)).h;
+    assert!(whole(3e-5 / both) && whole(2e-5 / both), "h = {both:e}");
+    let rows = granular::plan(&b, &solver, Some(2e-5 * std::f64::consts::SQRT_2)).h;
+    assert!(whole(2e-5 * std::f64::consts::SQRT_2 / rows) && !whole(2e-5 / rows));
+}
+
 #[test]
 fn trace_rows_fall_on_the_clock_with_the_tolerance_values() {
     use hertz_cradle::engine::granular::step::State;

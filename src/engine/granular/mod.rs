@@ -369,8 +369,9 @@ pub fn coarse_chain_error_model(m: crate::scene::Method) -> Option<f64> {
 /// never inside a step ([`step::pulse_on`]), and the methods keep their
 /// orders (kahanli6: 6, against 2 with τ inside a step). A trace's row
 /// spacing `every` is made a whole number of steps (the step shrinks to
-/// every/k), so rows fall on steps; with a pulse too, the k ≤ 4·⌈every/h⌉
-/// that keeps τ on a boundary as well, if there is one (else the rows win).
+/// every/k), so rows fall on steps; with a pulse too, the smallest k from
+/// ⌈every/h⌉ to 4·⌈every/h⌉ (at most 10^4 tried) that keeps τ on a boundary
+/// as well, if there is one (else the rows win).
 pub fn plan(beads: &Beads, solver: &Solver, every: Option<f64>) -> Plan {
     let ts = beads.time_scale();
     let mut h = match solver.step {
@@ -397,8 +398,9 @@ pub fn plan(beads: &Beads, solver: &Solver, every: Option<f64>) -> Plan {
     };
     match (every, kink) {
         (Some(e), Some(tau)) => {
+            // At most 10^4 candidates: a search, not a hang, when every ≫ h.
             let k0 = (e / h).ceil();
-            let k = (0..3 * k0 as u64 + 1)
+            let k = (0..=(3.0 * k0).min(1e4) as u64)
                 .map(|j| k0 + j as f64)
                 .find(|&k| on_boundary(e / k, tau))
                 .unwrap_or(k0);
