@@ -363,23 +363,17 @@ async fn map(State(d): State<Arc<Data>>, Query(q): Query<HashMap<String, String>
     let (sx, sy) = (steps[ax], steps[ay]);
     let ids = (0..ny)
         .flat_map(|iy| (0..nx).map(move |ix| (base + ix as u64 * sx + iy as u64 * sy) as usize));
-    let reply = |z| MapReply {
+    // Serialized straight from typed values (a `Value` per cell would cost
+    // more than the rest of the 10^6-cell reply).
+    Json(MapReply {
         nx,
         ny,
         base,
         sx,
         sy,
-        z,
-    };
-    // Serialized straight from typed values (a `Value` per cell would cost
-    // more than the rest of the 10^6-cell reply).
-    match &d.cols[z] {
-        Col::Num(v) => Json(reply(MapZ::Num(
-            ids.map(|id| v[id].is_finite().then_some(v[id])).collect(),
-        )))
-        .into_response(),
-        Col::Cat(c, _) => Json(reply(MapZ::Cat(ids.map(|id| c[id]).collect()))).into_response(),
-    }
+        z: d.cols[z].at(ids),
+    })
+    .into_response()
 }
 
 /// `/api/map`'s reply: the x × y slice's z values, row by row (y
@@ -392,15 +386,27 @@ struct MapReply {
     base: u64,
     sx: u64,
     sy: u64,
-    z: MapZ,
+    z: Column,
 }
 
-/// Numbers (null where empty) or category codes.
+/// A column's values at some rows, typed for serialization: numbers (null
+/// where empty), category codes, or row numbers.
 #[derive(serde::Serialize)]
 #[serde(untagged)]
-enum MapZ {
+enum Column {
     Num(Vec<Option<f64>>),
     Cat(Vec<u32>),
+    Whole(Vec<usize>),
+}
+
+impl Col {
+    /// This column at `rows`, in their order.
+    fn at(&self, rows: impl Iterator<Item = usize>) -> Column {
+        match self {
+            Col::Num(v) => Column::Num(rows.map(|r| v[r].is_finite().then_some(v[r])).collect()),
+            Col::Cat(c, _) => Column::Cat(rows.map(|r| c[r]).collect()),
+        }
+    }
 }
 
 /// A table that is not a grid (a point list, a sampling design): x, y and
@@ -421,20 +427,27 @@ async fn points(State(d): State<Arc<Data>>, Query(q): Query<HashMap<String, Stri
         (Ok(x), Ok(y), Ok(z)) => (x, y, z),
         (Err(e), _, _) | (_, Err(e), _) | (_, _, Err(e)) => return e,
     };
-    let values = |k: usize| -> Vec<Json_> {
-        (0..d.rows)
-            .map(|r| match &d.cols[k] {
-                Col::Num(v) if v[r].is_finite() => json!(v[r]),
-                Col::Num(_) => Json_::Null,
-                Col::Cat(c, _) => json!(c[r]),
-            })
-            .collect()
-    };
-    let ids: Vec<Json_> = match d.col("id") {
+    let values = |k: usize| d.cols[k].at(0..d.rows);
+    let id = match d.col("id") {
         Some(k) => values(k),
-        None => (0..d.rows).map(|r| json!(r)).collect(),
+        None => Column::Whole((0..d.rows).collect()),
     };
-    Json(json!({"x": values(x), "y": values(y), "z": values(z), "id": ids})).into_response()
+    Json(PointsReply {
+        x: values(x),
+        y: values(y),
+        z: values(z),
+        id,
+    })
+    .into_response()
+}
+
+/// `/api/points`' reply: every row's x, y and z and its id.
+#[derive(serde::Serialize)]
+struct PointsReply {
+    x: Column,
+    y: Column,
+    z: Column,
+    id: Column,
 }
 
 /// The scene id asked for and its row in the table.

@@ -79,7 +79,8 @@ impl State {
 
     /// Re-fit the window around the moving beads (`t`: the time now).
     fn shrink(&mut self, b: &Beads, stages: usize, t: f64) {
-        let pulse = b.pulse.as_ref().filter(|p| t < p.duration).map(|p| p.bead);
+        // The pulse's bead stays in while the next step (from t) feels it.
+        let pulse = b.pulse.as_ref().filter(|_| pulse_on(b, t)).map(|p| p.bead);
         let moving = |i: usize| self.v[i] != 0.0 || self.a[i] != 0.0 || Some(i) == pulse;
         let first = (self.lo..self.hi).find(|&i| moving(i));
         let Some(first) = first else {
