@@ -54,6 +54,8 @@ struct Head {
     o_snapv: u32,
     o_snapp: u32,
     o_snapev: u32,
+    o_kw: u32,
+    o_ps: u32,
 }
 
 // Steps per dispatch; chains done (counted once each, read by the host).
@@ -178,6 +180,50 @@ fn accelerate_kick(lo: u32, hi: u32, pulse: bool, f: f64, c: f64) {
     }
 }
 
+// integrate::kink_impulse_error (f64): the impulse per second of step the
+// composition misses on contact j, whose overlap crossed zero from d0 to d1.
+fn kink_impulse_error(kc: f64, d0: f64, d1: f64) -> f64 {
+    let dd = d1 - d0;
+    let p0 = select(d0, 0.0, 0.0 > d0);
+    let p1 = select(d1, 0.0, 0.0 > d1);
+    let exact = 0.4 * (p1 * p1 * sqrt(p1) - p0 * p0 * sqrt(p0)) / dd;
+    var pos: f64 = 0.0;
+    var quad = R[H.o_kw] * (p0 * sqrt(p0));
+    for (var i = 0u; i < H.stages; i++) {
+        pos = pos + wts[i];
+        let q = d0 + pos * dd;
+        let p = select(q, 0.0, 0.0 > q);
+        quad = quad + R[H.o_kw + i + 1u] * (p * sqrt(p));
+    }
+    return kc * (exact - quad);
+}
+
+// Whether contact j's overlap crossed zero in the step (step::kinks).
+fn crossed(j: u32) -> bool {
+    let d0 = R[H.o_d0 + j] + R[H.o_ps + j];
+    let d1 = R[H.o_d0 + j] + R[H.o_p + j];
+    return (d1 > 0.0) != (d0 > 0.0) && R[H.o_k + j] != 0.0;
+}
+
+// The impulse contact j missed in a step of length h (step::kinks).
+fn miss(j: u32, h: f64) -> f64 {
+    let d0 = R[H.o_d0 + j] + R[H.o_ps + j];
+    let d1 = R[H.o_d0 + j] + R[H.o_p + j];
+    return kink_impulse_error(R[H.o_k + j], d0, d1) * h;
+}
+
+// step::kinks: bead by bead, its left contact's share, then its right one's.
+fn kinks(lo: u32, hi: u32, h: f64) {
+    for (var i = lo + me; i < hi; i += WG) {
+        if (crossed(i)) {
+            R[H.o_v + i] = R[H.o_v + i] + miss(i, h) * R[H.o_im + i];
+        }
+        if (crossed(i + 1u)) {
+            R[H.o_v + i] = R[H.o_v + i] - miss(i + 1u, h) * R[H.o_im + i];
+        }
+    }
+}
+
 // step::step_portable from st.t0 by st.h over the window st.lo .. st.hi.
 fn step(st: Step) {
     let lo = st.lo;
@@ -189,6 +235,12 @@ fn step(st: Step) {
     let omega = R[H.sc + SC_OMEGA];
     let has_pulse = (H.flags & F_PULSE) != 0u && H.pulse_bead >= lo && H.pulse_bead < hi;
     var t = st.t0;
+    let kinked = (H.flags & F_KINKS) != 0u;
+    if (kinked) {
+        for (var j = lo + me; j <= hi; j += WG) {
+            R[H.o_ps + j] = R[H.o_p + j];
+        }
+    }
     kick(lo, hi, 0.5 * wts[0] * h);
     storageBarrier();
     for (var j = 0u; j < s; j++) {
@@ -209,6 +261,10 @@ fn step(st: Step) {
             f = pforce * pulse_sin(t, omega);
         }
         accelerate_kick(lo, hi, on, f, c);
+        storageBarrier();
+    }
+    if (kinked) {
+        kinks(lo, hi, h);
         storageBarrier();
     }
 }

@@ -32,6 +32,7 @@ pub fn run(beads: &Beads, plan: &Plan, rows: &mut dyn Rows) -> ChainOutcome {
 /// [`run`], the window the whole chain when `whole` (for tests).
 pub fn run_with(b: &Beads, plan: &Plan, rows: &mut dyn Rows, whole: bool) -> ChainOutcome {
     let w = plan.weights;
+    let m = plan.substeps();
     let mut st = State::start(b, w, whole);
     let mut obs = Watch::new(b);
     let e_start = b.energy(&st.p, &st.v);
@@ -72,7 +73,7 @@ pub fn run_with(b: &Beads, plan: &Plan, rows: &mut dyn Rows, whole: bool) -> Cha
                 t1 = d;
             }
         }
-        step(b, &mut st, t, t1 - t, w, whole);
+        step(b, &mut st, t, t1 - t, &m, whole);
         t = t1;
         obs.see(b, &st, t);
         if e_ref.is_none() && b.pulse.as_ref().is_some_and(|p| t >= p.duration) {

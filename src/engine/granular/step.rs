@@ -37,6 +37,9 @@ pub struct State {
     /// The window: beads lo .. hi (contacts lo ..= hi).
     pub lo: usize,
     pub hi: usize,
+    /// Scratch: `p` of contacts lo ..= hi at the start of the step being
+    /// taken (for [`kinks`]); nothing between steps.
+    pub p_start: Vec<f64>,
 }
 
 impl State {
@@ -52,6 +55,7 @@ impl State {
             x0: 0.0,
             lo: 0,
             hi: n,
+            p_start: vec![0.0; n + 1],
         };
         forces(b, &mut s, 0.0, pulse_on(b, 0.0));
         if !whole {
@@ -219,27 +223,73 @@ fn drift(s: &mut State, dt: f64) {
 /// (chosen at run time): the force loop's square roots are most of a
 /// step's cost. The results are the same bits (IEEE square roots are
 /// correctly rounded at any width, and no multiply-add is fused).
-pub fn step(b: &Beads, s: &mut State, t0: f64, h: f64, w: &[f64], whole: bool) {
+pub fn step(b: &Beads, s: &mut State, t0: f64, h: f64, m: &Substeps, whole: bool) {
     #[cfg(target_arch = "x86_64")]
     {
         if std::is_x86_feature_detected!("avx2") {
             // SAFETY: the CPU has AVX2 (checked just above).
-            return unsafe { step_avx2(b, s, t0, h, w, whole) };
+            return unsafe { step_avx2(b, s, t0, h, m, whole) };
         }
     }
-    step_portable(b, s, t0, h, w, whole)
+    step_portable(b, s, t0, h, m, whole)
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-unsafe fn step_avx2(b: &Beads, s: &mut State, t0: f64, h: f64, w: &[f64], whole: bool) {
-    step_portable(b, s, t0, h, w, whole)
+unsafe fn step_avx2(b: &Beads, s: &mut State, t0: f64, h: f64, m: &Substeps, whole: bool) {
+    step_portable(b, s, t0, h, m, whole)
+}
+
+/// A step's substeps: the composition's drift weights, and the kick
+/// weights at the drift positions ([`crate::engine::integrate::kick_weights`])
+/// when contacts that open or close in a step get [`kinks`]' correction.
+#[derive(Clone, Copy, Debug)]
+pub struct Substeps<'a> {
+    pub weights: &'a [f64],
+    pub kicks: Option<&'a [f64]>,
+}
+
+/// The kink correction of a step of length `h`: a contact whose overlap
+/// crossed zero during the step (δ^{3/2}⁺ has a kink there that the
+/// composition's quadrature misses, by ∝ h^{5/2}) gets the impulse the step
+/// missed along a straight δ from its start to its end
+/// ([`crate::engine::integrate::kink_impulse_error`], the cradle engine's
+/// correction), added to its two beads' velocities. Bead by bead (its left
+/// contact's share, then its right one's), as the GPU kernel's invocations
+/// do it.
+#[inline(always)]
+fn kinks(b: &Beads, s: &mut State, h: f64, w: &[f64], kicks: &[f64]) {
+    let (lo, hi) = (s.lo, s.hi);
+    let crossed = |j: usize| {
+        let (d0, d1) = (b.d0[j] + s.p_start[j], b.d0[j] + s.p[j]);
+        ((d1 > 0.0) != (d0 > 0.0) && b.k[j] != 0.0).then_some((d0, d1))
+    };
+    if !(lo..=hi).any(|j| crossed(j).is_some()) {
+        return;
+    }
+    let miss = |j: usize, (d0, d1): (f64, f64)| {
+        crate::engine::integrate::kink_impulse_error(b.k[j], d0, d1, w, kicks) * h
+    };
+    for i in lo..hi {
+        let (left, right) = (crossed(i), crossed(i + 1));
+        if let Some(d) = left {
+            s.v[i] += miss(i, d) * b.inv_mass[i];
+        }
+        if let Some(d) = right {
+            s.v[i] -= miss(i + 1, d) * b.inv_mass[i];
+        }
+    }
 }
 
 #[inline(always)]
-fn step_portable(b: &Beads, s: &mut State, t0: f64, h: f64, w: &[f64], whole: bool) {
+fn step_portable(b: &Beads, s: &mut State, t0: f64, h: f64, m: &Substeps, whole: bool) {
+    let w = m.weights;
     let mut t = t0;
     let on = pulse_on(b, t0);
+    if m.kicks.is_some() {
+        let (lo, hi) = (s.lo, s.hi);
+        s.p_start[lo..=hi].copy_from_slice(&s.p[lo..=hi]);
+    }
     kick(s, 0.5 * w[0] * h);
     for (j, &wj) in w.iter().enumerate() {
         drift(s, wj * h);
@@ -250,6 +300,9 @@ fn step_portable(b: &Beads, s: &mut State, t0: f64, h: f64, w: &[f64], whole: bo
             None => 0.5 * wj * h,
         };
         kick(s, c);
+    }
+    if let Some(kicks) = m.kicks {
+        kinks(b, s, h, w, kicks);
     }
     s.steps += 1;
     if !whole {

@@ -244,7 +244,7 @@ pub fn kick_weights(weights: &[f64]) -> Vec<f64> {
 /// order, so this is the leading error of the crossing step, ∝ s^{5/2}; the
 /// same operations as `kink_impulse_error` in the shader.
 #[inline(always)]
-pub(super) fn kink_impulse_error<R: Real>(k: R, d0: R, d1: R, weights: &[f64], kicks: &[f64]) -> R {
+pub fn kink_impulse_error<R: Real>(k: R, d0: R, d1: R, weights: &[f64], kicks: &[f64]) -> R {
     let zero = R::zero();
     let dd = d1 - d0;
     let p0 = hi(d0, zero);

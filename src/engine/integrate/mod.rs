@@ -51,7 +51,7 @@ use super::Chain;
 use crate::scene::MAX_BALLS;
 pub use driver::{integrate, integrate_batch, LANES};
 use kernels::*;
-pub use kernels::{closing_speed_floor, decay, kick_weights, pendulum_sin};
+pub use kernels::{closing_speed_floor, decay, kick_weights, kink_impulse_error, pendulum_sin};
 
 /// A velocity at or above this magnitude (m/s) counts as non-finite; the
 /// shader has no `isfinite`, so both twins use this test.
