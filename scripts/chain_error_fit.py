@@ -1,36 +1,48 @@
 """Fit the chain step rule's error model (granular::chain_error_model): error ~
-C*(h/t_s)^q*(T/t_s) on a uniform 200-bead steel chain (R = 5 mm) struck at bead 0
-at 0.1 m/s, run to the default end, at given steps h = t_s/n
-(n = 20 to 2560, five an octave). Error: the largest
-of the probes' (50, 150) velocity-peak times / run time and values / v, and every
-bead's final velocity / v, against kahanli6 at t_s/16000. Prints the table and
-each method's fitted order q (least squares) and the envelope C.
+C*(h/t_s)^q*(T/t_s), relative to the striker speed, on uniform steel chains
+(R = 5 mm) of N beads struck at bead 0 at 0.1 m/s, run to 0.76 of their default
+end (the wave ~70% along the chain, where a phase error shows most in the final
+velocities), at given steps h = t_s/n (n = 20 to 2560, five an octave: a kink's
+error depends on where in its step the contact crosses, so the error scatters
+about its trend with h and an envelope needs many points). Error: the largest
+of the probes' (N/4, 3N/4) velocity-peak times / run time and values / v, and
+every bead's final velocity / v, against kahanli6 at t_s/16000.
 
-    python3 scripts/chain_error_fit.py [CRADLE] [N]   (default target/release/cradle 200)"""
+Prints each chain's table, then each method's model over all chains: q by least
+squares of log(error/T) against log(h/t_s), C the envelope of every point times
+a margin of 3 (what granular::chain_error_model holds).
+
+    python3 scripts/chain_error_fit.py [CRADLE] [N ...]   (default target/release/cradle 200 1000)"""
 import csv, io, math, os, subprocess, sys, tempfile
 
 C = sys.argv[1] if len(sys.argv) > 1 else "target/release/cradle"
-N = int(sys.argv[2]) if len(sys.argv) > 2 else 200
+CHAINS = [int(n) for n in sys.argv[2:]] or [200, 1000]
 V = 0.1
-PROBES = (N // 4, 3 * N // 4)
-BASE = f"""balls = {N}
+MARGIN = 3.0
+FINE = [20 * 2 ** (k / 5) for k in range(36)]
+METHODS = [("kahanli6", FINE), ("yoshida6", FINE), ("yoshida4", FINE), ("suzuki4", FINE),
+           ("verlet", FINE[5:])]
+tmp = tempfile.mkdtemp()
+
+
+def base(n):
+    return f"""balls = {n}
 radius = 0.005
 [launch]
 balls = 1
 velocity = {V}
 [probes]
-beads = [{PROBES[0]}, {PROBES[1]}]
+beads = [{n // 4}, {3 * n // 4}]
 [record]
 stride = 1
 every = 1.0
 """
-tmp = tempfile.mkdtemp()
 
 
-def run(solver):
+def run(text):
     path = os.path.join(tmp, "c.toml")
     with open(path, "w") as f:
-        f.write(BASE + "[solver]\n" + solver)
+        f.write(text)
     tr = os.path.join(tmp, "t.csv")
     out = subprocess.run([C, "run", path, "--format", "csv", "--trace", tr],
                          capture_output=True, text=True, check=True).stdout
@@ -38,49 +50,56 @@ def run(solver):
     o = {k: float(v) if v not in ("", "ok") else v for k, v in zip(head, row)}
     rows = list(csv.reader(open(tr)))
     last = dict(zip(rows[0], rows[-1]))
-    o["v"] = [float(last[f"v_{i}"]) for i in range(N)]
+    o["v"] = [float(last[k]) for k in rows[0] if k.startswith("v_")]
     return o
 
 
-def error(o, r):
+def error(o, r, n):
     e = max(abs(a - b) for a, b in zip(o["v"], r["v"])) / V
-    for p in PROBES:
+    for p in (n // 4, 3 * n // 4):
         e = max(e, abs(o[f"arrival_{p}"] - r[f"arrival_{p}"]) / r["t_end"],
                 abs(o[f"peak_v_{p}"] - r[f"peak_v_{p}"]) / V)
     return e
 
 
-loose = run("tolerance = 0.5\n")
-ts = 20 * loose["dt"]        # the rule's cap, h = t_s/20, at a loose tolerance
-# A fixed end while the wave is in the chain (0.76 of the default end: the
-# wave ~70% along), where a phase error shows most in the final velocities;
-# at the default end the wave has left through the free end.
-BASE += f"[stop]\nduration = {0.76 * loose['t_end']!r}\n"
-ref = run(f"dt = {ts / 16000!r}\nmethod = \"kahanli6\"\n")
-T = ref["t_end"] / ts
-print(f"t_s = {ts:.6e} s, run T = {T:.1f} t_s, reference kahanli6 at t_s/16000 ({ref['steps']:.0f} steps)\n")
-print("| method | h | error | local order |")
-print("|---|---|---|---|")
-fits = {}
-# Five steps an octave: a kink's error depends on where in its step the
-# contact crosses zero, so the error scatters about its trend with h and an
-# envelope needs many points.
-FINE = [20 * 2 ** (k / 5) for k in range(36)]
-for method, ns in [("kahanli6", FINE), ("yoshida6", FINE), ("yoshida4", FINE), ("suzuki4", FINE),
-                   ("verlet", FINE[5:])]:
-    pts = []
-    for n in ns:
-        o = run(f"dt = {ts / n!r}\nmethod = \"{method}\"\n")
-        pts.append((o["dt"] / ts, error(o, ref)))
-        order = "" if len(pts) < 2 else f"{math.log(pts[-2][1] / pts[-1][1]) / math.log(pts[-2][0] / pts[-1][0]):.2f}"
-        print(f"| {method} | t_s/{n:.1f} | {pts[-1][1]:.2e} | {order} |", flush=True)
-    # q: least squares over every step; C: the upper envelope e/(T x^q) (the
-    # errors of kinks scatter about the trend; the engine adds a margin).
+def chain(n):
+    """Points (h/t_s, error/T) per method on the n-bead chain, its table printed."""
+    loose = run(base(n) + "[solver]\ntolerance = 0.5\n")
+    ts = 20 * loose["dt"]  # the rule's cap, h = t_s/20, at a loose tolerance
+    text = base(n) + f"[stop]\nduration = {0.76 * loose['t_end']!r}\n[solver]\n"
+    ref = run(text + f"dt = {ts / 16000!r}\nmethod = \"kahanli6\"\n")
+    T = ref["t_end"] / ts
+    print(f"## {n} beads\n\nt_s = {ts:.6e} s, run T = {T:.1f} t_s, "
+          f"reference kahanli6 at t_s/16000 ({ref['steps']:.0f} steps)\n")
+    print("| method | h | error | local order |")
+    print("|---|---|---|---|")
+    pts = {}
+    for method, ns in METHODS:
+        got = pts.setdefault(method, [])
+        for k in ns:
+            o = run(text + f"dt = {ts / k!r}\nmethod = \"{method}\"\n")
+            got.append((o["dt"] / ts, error(o, ref, n) / T))
+            (x1, e1), (x0, e0) = got[-1], got[-2] if len(got) > 1 else (None, None)
+            order = "" if x0 is None else f"{math.log(e0 / e1) / math.log(x0 / x1):.2f}"
+            print(f"| {method} | t_s/{k:.1f} | {e1 * T:.2e} | {order} |", flush=True)
+    print()
+    return pts
+
+
+def fit(pts):
+    """q by least squares, C the envelope of (x, e/T) points."""
     xs = [math.log(x) for x, _ in pts]
-    ys = [math.log(e / T) for _, e in pts]
+    ys = [math.log(y) for _, y in pts]
     mx, my = sum(xs) / len(xs), sum(ys) / len(ys)
     q = sum((x - mx) * (y - my) for x, y in zip(xs, ys)) / sum((x - mx) ** 2 for x in xs)
-    fits[method] = (max(e / (T * x ** q) for x, e in pts), q)
-print()
-for m, (c, q) in fits.items():
-    print(f"{m}: q = {q:.2f}, C = {c:.3g} (the envelope: error <= C*(h/t_s)^q*T/t_s at every h above)")
+    return max(y / x ** q for x, y in pts), q
+
+
+if __name__ == "__main__":
+    every = [chain(n) for n in CHAINS]
+    print(f"## The model over {', '.join(map(str, CHAINS))} beads\n")
+    print("| method | q | envelope C | C with the margin (x3) |")
+    print("|---|---|---|---|")
+    for method, _ in METHODS:
+        c, q = fit([p for pts in every for p in pts[method]])
+        print(f"| {method} | {q:.2f} | {c:.3g} | {MARGIN * c:.3g} |")

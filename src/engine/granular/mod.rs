@@ -367,7 +367,7 @@ pub fn chain_error_model(m: crate::scene::Method) -> (f64, f64) {
     use crate::scene::Method::*;
     match m {
         Verlet => (0.8, 2.0),
-        Yoshida4 => (11.5, 3.52),
+        Yoshida4 => (11.6, 3.52),
         Suzuki4 => (0.0128, 2.84),
         Yoshida6 => (0.0298, 2.98),
         KahanLi6 => (0.0338, 3.28),

@@ -38,7 +38,8 @@ pub struct State {
     pub lo: usize,
     pub hi: usize,
     /// Scratch: `p` of contacts lo ..= hi at the start of the step being
-    /// taken (for [`kinks`]); nothing between steps.
+    /// taken (for the kink correction, [`Substeps::kicks`]); nothing between
+    /// steps.
     pub p_start: Vec<f64>,
 }
 
@@ -242,7 +243,8 @@ unsafe fn step_avx2(b: &Beads, s: &mut State, t0: f64, h: f64, m: &Substeps, who
 
 /// A step's substeps: the composition's drift weights, and the kick
 /// weights at the drift positions ([`crate::engine::integrate::kick_weights`])
-/// when contacts that open or close in a step get [`kinks`]' correction.
+/// when contacts that open or close in a step get the kink correction
+/// (`kinks`).
 #[derive(Clone, Copy, Debug)]
 pub struct Substeps<'a> {
     pub weights: &'a [f64],
@@ -264,7 +266,14 @@ fn kinks(b: &Beads, s: &mut State, h: f64, w: &[f64], kicks: &[f64]) {
         let (d0, d1) = (b.d0[j] + s.p_start[j], b.d0[j] + s.p[j]);
         ((d1 > 0.0) != (d0 > 0.0) && b.k[j] != 0.0).then_some((d0, d1))
     };
-    if !(lo..=hi).any(|j| crossed(j).is_some()) {
+    // Most steps have none: one branch-free pass over the window finds out.
+    let (d0, k) = (&b.d0[lo..=hi], &b.k[lo..=hi]);
+    let (ps, p) = (&s.p_start[lo..=hi], &s.p[lo..=hi]);
+    let mut any = false;
+    for j in 0..d0.len() {
+        any |= ((d0[j] + ps[j] > 0.0) != (d0[j] + p[j] > 0.0)) & (k[j] != 0.0);
+    }
+    if !any {
         return;
     }
     let miss = |j: usize, (d0, d1): (f64, f64)| {
