@@ -358,8 +358,9 @@ impl Plan {
 /// chains, C the envelope of every point (error/T ≤ C·(h/t_s)^q) times a
 /// margin of 3 (verlet's, fitted before the kink correction and unchanged:
 /// 2.3); errors below 1e-10, f64's round-off over millions of steps rather
-/// than the step's, are left out. Contacts open and close inside steps; with the kink correction
-/// ([`step::Substeps`]) the methods above order 2 keep more of their order
+/// than the step's, are left out. Contacts open and close inside steps;
+/// with the kink correction ([`step::Substeps`]) the methods above order 2
+/// keep more of their order
 /// (kahanli6 3.3, yoshida4 3.5, yoshida6 2.9, suzuki4 2.8 over the whole
 /// range; kahanli6 fell as h^1.6 without it), and a kink's error depends on
 /// where in its step the contact crosses: the errors scatter up to ~10×
