@@ -265,7 +265,7 @@ fn contacts_opening_inside_a_step_get_the_kink_correction() {
     };
     // (method, least order from t_s/20 to t_s/160, least gain at t_s/160);
     // measured: kahanli6 3.26 and 16x, yoshida4 4.28 and 6.8x (without the
-    // correction their orders were 2.4 and 3.0 on this chain).
+    // correction their orders were 2.4 and 3.4 on this chain).
     for (m, least, gain) in [(Method::KahanLi6, 3.0, 10.0), (Method::Yoshida4, 3.8, 4.0)] {
         let coarse = err(&run(ts / 20.0, m, true));
         let fine = err(&run(ts / 160.0, m, true));
