@@ -261,17 +261,23 @@ pub struct Substeps<'a> {
 /// do it.
 #[inline(always)]
 fn kinks(b: &Beads, s: &mut State, h: f64, w: &[f64], kicks: &[f64]) {
+    // Whether a contact at rest overlap `d0` with stiffness `k` crossed zero
+    // going from `p_start` to `p` (no branch: the scan below vectorises).
+    #[inline(always)]
+    fn crosses(d0: f64, k: f64, p_start: f64, p: f64) -> bool {
+        ((d0 + p_start > 0.0) != (d0 + p > 0.0)) & (k != 0.0)
+    }
     let (lo, hi) = (s.lo, s.hi);
     let crossed = |j: usize| {
-        let (d0, d1) = (b.d0[j] + s.p_start[j], b.d0[j] + s.p[j]);
-        ((d1 > 0.0) != (d0 > 0.0) && b.k[j] != 0.0).then_some((d0, d1))
+        crosses(b.d0[j], b.k[j], s.p_start[j], s.p[j])
+            .then_some((b.d0[j] + s.p_start[j], b.d0[j] + s.p[j]))
     };
     // Most steps have none: one branch-free pass over the window finds out.
     let (d0, k) = (&b.d0[lo..=hi], &b.k[lo..=hi]);
     let (ps, p) = (&s.p_start[lo..=hi], &s.p[lo..=hi]);
     let mut any = false;
     for j in 0..d0.len() {
-        any |= ((d0[j] + ps[j] > 0.0) != (d0[j] + p[j] > 0.0)) & (k[j] != 0.0);
+        any |= crosses(d0[j], k[j], ps[j], p[j]);
     }
     if !any {
         return;
