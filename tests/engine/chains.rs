@@ -148,6 +148,13 @@ fn chain_error(o: &ChainOutcome, r: &ChainOutcome, v_in: f64) -> f64 {
         .fold(e, |e, (a, b)| e.max((a - b).abs() / v_in))
 }
 
+/// max_i |a_i − b_i|.
+fn largest_difference(a: &[f64], b: &[f64]) -> f64 {
+    a.iter()
+        .zip(b)
+        .fold(0.0f64, |e, (x, y)| e.max((x - y).abs()))
+}
+
 #[test]
 fn chain_outcomes_meet_the_tolerance() {
     let text = struck(120, 0.1, "[stop]\nduration = 2.4e-3\n");
@@ -204,12 +211,7 @@ fn a_pulse_ends_on_a_step_and_the_methods_keep_their_orders() {
     };
     let (reference, _) = run(tau / 4000.0, Method::KahanLi6);
     let scale = reference.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-    let err = |v: &[f64]| {
-        v.iter()
-            .zip(&reference)
-            .fold(0.0f64, |e, (a, b)| e.max((a - b).abs()))
-            / scale
-    };
+    let err = |v: &[f64]| largest_difference(v, &reference) / scale;
     // dt that do not divide τ: the plan shrinks them onto it.
     for (m, order, n) in [(Method::KahanLi6, 6.0, 10.5), (Method::Yoshida4, 4.0, 20.5)] {
         let ((vc, hc), (vf, hf)) = (run(tau / n, m), run(tau / (2.0 * n), m));
@@ -257,12 +259,7 @@ fn contacts_opening_inside_a_step_get_the_kink_correction() {
     };
     let ts = 2e-5;
     let reference = run(ts / 3000.0, Method::KahanLi6, true);
-    let err = |v: &[f64]| {
-        v.iter()
-            .zip(&reference)
-            .fold(0.0f64, |e, (a, b)| e.max((a - b).abs()))
-            / 0.1
-    };
+    let err = |v: &[f64]| largest_difference(v, &reference) / 0.1;
     // (method, least order from t_s/20 to t_s/160, least gain at t_s/160);
     // measured: kahanli6 3.26 and 16x, yoshida4 4.28 and 6.8x (without the
     // correction their orders were 2.4 and 3.4 on this chain).
