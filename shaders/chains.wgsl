@@ -1,4 +1,4 @@
-// The granular-chain kernel (docs/SPEC.md §9), f64. A workgroup runs one
+// The granular-chain kernel (docs/SPEC.md §9), in f64 or df64. A workgroup runs one
 // chain; its invocations stride over the beads and contacts of the window
 // (bead i is invocation i mod WG's, so a chain of any length works and
 // neighbouring invocations touch neighbouring words). Twin of
@@ -14,10 +14,15 @@
 // state read back (engine::granular::run::finish). WGSL has no u64: steps
 // are two u32 words. x0, the first bead's displacement, is not kept (only
 // traces use it). The prelude (backend::gpu::chains::chain_shader) gives
-// the constants WG, MAX_STAGES, MARGIN_EXTRA, CHECK_MASK, END_MARGIN, F_*,
-// SNAP_*, ST_*, and two functions written out there (lavapipe cuts loops
-// short past a budget of iterations): `peak` (60 bisection steps) and
-// `half_sine` (step::half_sine, its factors printed from SINE_FACTORS).
+// the constants WG, MAX_STAGES, MARGIN_EXTRA, CHECK_MASK, F_*, SNAP_*,
+// ST_*, the reals END_SCALE, ALMOST_ONE, HALF_PI and PI (as the CPU rounds
+// them), the precision's `real` and its arithmetic r_* (backend::layout,
+// as the cradle kernels have them: every operation on a real is a call, so
+// one body serves f64 and df64), r_count and r_finite, and two functions
+// written out there (lavapipe cuts loops short past a budget of
+// iterations): `peak` (60 bisection steps) and `half_sine`
+// (step::half_sine, its factors printed from SINE_FACTORS). `real(x)` of a
+// literal is the precision's nearest value (layout::body_for).
 
 // One chain's header (backend::gpu::chains::ChainHead): sizes, the state
 // kept between steps, and offsets into R of its reals.
@@ -65,7 +70,7 @@ struct Ctl {
 }
 
 @group(0) @binding(0) var<storage, read_write> heads: array<Head>;
-@group(0) @binding(1) var<storage, read_write> R: array<f64>;
+@group(0) @binding(1) var<storage, read_write> R: array<real>;
 @group(0) @binding(2) var<storage, read_write> ctl: Ctl;
 @group(0) @binding(3) var<storage, read> probe_beads: array<u32>;
 
@@ -85,10 +90,10 @@ const SC_OMEGA: u32 = 10u;
 // x·a + y·a into (x + y)·a when it sees the same a, which is not the CPU's
 // rounding (the pulse's push is added to the contacts' as the CPU adds it).
 const SC_PULSE_IM: u32 = 11u;
+// 1.0: its f32 word is df64's opaque one (`one_s`, layout's ds_b).
+const SC_ONE: u32 = 12u;
 
 const NONE: u32 = 0xffffffffu;
-const HALF_PI: f64 = 1.5707963267948966;
-const F64_MAX: f64 = 1.7976931348623157e308;
 
 // The header as invocation 0 keeps it between steps.
 var<workgroup> hd: Head;
@@ -100,47 +105,69 @@ struct Step {
     hi: u32,
     snaps: u32,
     check: u32,
-    t0: f64,
-    h: f64,
-    t1: f64,
+    t0: real,
+    h: real,
+    t1: real,
 }
 var<workgroup> ws: Step;
 var<workgroup> first_moving: atomic<u32>;
 var<workgroup> last_moving: atomic<u32>;
 var<workgroup> bad: atomic<u32>;
-var<workgroup> red: array<f64, WG>;
+var<workgroup> red: array<real, WG>;
 
 // This chain's constants (the same in every invocation).
 var<private> me: u32;
 var<private> H: Head;
-var<private> wts: array<f64, MAX_STAGES>;
+var<private> wts: array<real, MAX_STAGES>;
+var<private> one_s: f32;
+
+// A quantity and its first two rates; a peak's place and value.
+struct Q {
+    x: real,
+    y: real,
+    z: real,
+}
+struct Peak {
+    x: real,
+    y: real,
+}
+
+// x != 0 (Real's !=: every word).
+fn r_nz(a: real) -> bool {
+    return any(a != real(0.0));
+}
+
+// The larger, as Real::max for numbers.
+fn fmax(a: real, b: real) -> real {
+    return select(a, b, r_gt(b, a));
+}
 
 // engine::granular::hertz — k·δ·√δ of δ⁺.
-fn hertz(k: f64, d: f64) -> f64 {
-    let dd = max(d, 0.0);
-    return k * dd * sqrt(dd);
+fn hertz(k: real, d: real) -> real {
+    let dd = r_max(d, real(0.0));
+    return r_mul(r_mul(k, dd), r_sqrt(dd));
 }
 
 // engine::granular::step::pulse_sin and pulse_cos (ω = π/τ).
-fn pulse_sin(t: f64, omega: f64) -> f64 {
-    return half_sine(omega * t);
+fn pulse_sin(t: real, omega: real) -> real {
+    return half_sine(r_mul(omega, t));
 }
 
-fn pulse_cos(t: f64, omega: f64) -> f64 {
-    return half_sine(HALF_PI - omega * t);
+fn pulse_cos(t: real, omega: real) -> real {
+    return half_sine(r_sub(HALF_PI, r_mul(omega, t)));
 }
 
 // ---- the step (step.rs): every invocation, its beads and contacts ----
 
 // v_i += c·a_i, beads lo .. hi.
-fn kick(lo: u32, hi: u32, c: f64) {
+fn kick(lo: u32, hi: u32, c: real) {
     for (var i = lo + me; i < hi; i += WG) {
-        R[H.o_v + i] = R[H.o_v + i] + c * R[H.o_a + i];
+        R[H.o_v + i] = r_add(R[H.o_v + i], r_mul(c, R[H.o_a + i]));
     }
 }
 
 // p_j += dt·(v_{j−1} − v_j), contacts lo ..= hi (walls do not move).
-fn drift(lo: u32, hi: u32, dt: f64) {
+fn drift(lo: u32, hi: u32, dt: real) {
     let n = H.n;
     if (lo == hi) {
         return;
@@ -148,14 +175,14 @@ fn drift(lo: u32, hi: u32, dt: f64) {
     let a = max(lo, 1u);
     let z = min(hi, n - 1u);
     for (var j = a + me; j <= z; j += WG) {
-        R[H.o_p + j] = R[H.o_p + j] + dt * (R[H.o_v + j - 1u] - R[H.o_v + j]);
+        R[H.o_p + j] = r_add(R[H.o_p + j], r_mul(dt, r_sub(R[H.o_v + j - 1u], R[H.o_v + j])));
     }
     if (me == 0u) {
         if (lo == 0u) {
-            R[H.o_p] = R[H.o_p] - dt * R[H.o_v];
+            R[H.o_p] = r_sub(R[H.o_p], r_mul(dt, R[H.o_v]));
         }
         if (hi == n) {
-            R[H.o_p + n] = R[H.o_p + n] + dt * R[H.o_v + n - 1u];
+            R[H.o_p + n] = r_add(R[H.o_p + n], r_mul(dt, R[H.o_v + n - 1u]));
         }
     }
 }
@@ -163,63 +190,67 @@ fn drift(lo: u32, hi: u32, dt: f64) {
 // Excess forces of contacts lo ..= hi.
 fn excess_forces(lo: u32, hi: u32) {
     for (var j = lo + me; j <= hi; j += WG) {
-        R[H.o_e + j] = hertz(R[H.o_k + j], R[H.o_d0 + j] + R[H.o_p + j]) - R[H.o_f0 + j];
+        R[H.o_e + j] = r_sub(hertz(R[H.o_k + j], r_add(R[H.o_d0 + j], R[H.o_p + j])), R[H.o_f0 + j]);
     }
 }
 
 // Accelerations of beads lo .. hi (the pulse's force `f` on its bead when
 // `pulse`), then the kick by c.
-fn accelerate_kick(lo: u32, hi: u32, pulse: bool, f: f64, c: f64) {
+fn accelerate_kick(lo: u32, hi: u32, pulse: bool, f: real, c: real) {
     for (var i = lo + me; i < hi; i += WG) {
-        var acc = (R[H.o_e + i] - R[H.o_e + i + 1u]) * R[H.o_im + i];
+        var acc = r_mul(r_sub(R[H.o_e + i], R[H.o_e + i + 1u]), R[H.o_im + i]);
         if (pulse && i == H.pulse_bead) {
-            acc = acc + f * R[H.sc + SC_PULSE_IM];
+            acc = r_add(acc, r_mul(f, R[H.sc + SC_PULSE_IM]));
         }
         R[H.o_a + i] = acc;
-        R[H.o_v + i] = R[H.o_v + i] + c * acc;
+        R[H.o_v + i] = r_add(R[H.o_v + i], r_mul(c, acc));
     }
 }
 
-// integrate::kink_impulse_error (f64): the impulse per second of step the
+// integrate::kernels::hi(x, 0): x⁺, −0 kept.
+fn plus(x: real) -> real {
+    return select(x, real(0.0), r_gt(real(0.0), x));
+}
+
+// integrate::kink_impulse_error: the impulse per second of step the
 // composition misses on contact j, whose overlap crossed zero from d0 to d1.
-fn kink_impulse_error(kc: f64, d0: f64, d1: f64) -> f64 {
-    let dd = d1 - d0;
-    let p0 = select(d0, 0.0, 0.0 > d0);
-    let p1 = select(d1, 0.0, 0.0 > d1);
-    let exact = 0.4 * (p1 * p1 * sqrt(p1) - p0 * p0 * sqrt(p0)) / dd;
-    var pos: f64 = 0.0;
-    var quad = R[H.o_kw] * (p0 * sqrt(p0));
+fn kink_impulse_error(kc: real, d0: real, d1: real) -> real {
+    let dd = r_sub(d1, d0);
+    let p0 = plus(d0);
+    let p1 = plus(d1);
+    let exact = r_div(r_mul(real(0.4), r_sub(r_mul(r_mul(p1, p1), r_sqrt(p1)), r_mul(r_mul(p0, p0), r_sqrt(p0)))), dd);
+    var pos = real(0.0);
+    var quad = r_mul(R[H.o_kw], r_mul(p0, r_sqrt(p0)));
     for (var i = 0u; i < H.stages; i++) {
-        pos = pos + wts[i];
-        let q = d0 + pos * dd;
-        let p = select(q, 0.0, 0.0 > q);
-        quad = quad + R[H.o_kw + i + 1u] * (p * sqrt(p));
+        pos = r_add(pos, wts[i]);
+        let p = plus(r_add(d0, r_mul(pos, dd)));
+        quad = r_add(quad, r_mul(R[H.o_kw + i + 1u], r_mul(p, r_sqrt(p))));
     }
-    return kc * (exact - quad);
+    return r_mul(kc, r_sub(exact, quad));
 }
 
 // Whether contact j's overlap crossed zero in the step (step::kinks).
 fn crossed(j: u32) -> bool {
-    let d0 = R[H.o_d0 + j] + R[H.o_ps + j];
-    let d1 = R[H.o_d0 + j] + R[H.o_p + j];
-    return (d1 > 0.0) != (d0 > 0.0) && R[H.o_k + j] != 0.0;
+    let d0 = r_add(R[H.o_d0 + j], R[H.o_ps + j]);
+    let d1 = r_add(R[H.o_d0 + j], R[H.o_p + j]);
+    return r_gt(d1, real(0.0)) != r_gt(d0, real(0.0)) && r_nz(R[H.o_k + j]);
 }
 
 // The impulse contact j missed in a step of length h (step::kinks).
-fn miss(j: u32, h: f64) -> f64 {
-    let d0 = R[H.o_d0 + j] + R[H.o_ps + j];
-    let d1 = R[H.o_d0 + j] + R[H.o_p + j];
-    return kink_impulse_error(R[H.o_k + j], d0, d1) * h;
+fn miss(j: u32, h: real) -> real {
+    let d0 = r_add(R[H.o_d0 + j], R[H.o_ps + j]);
+    let d1 = r_add(R[H.o_d0 + j], R[H.o_p + j]);
+    return r_mul(kink_impulse_error(R[H.o_k + j], d0, d1), h);
 }
 
 // step::kinks: bead by bead, its left contact's share, then its right one's.
-fn kinks(lo: u32, hi: u32, h: f64) {
+fn kinks(lo: u32, hi: u32, h: real) {
     for (var i = lo + me; i < hi; i += WG) {
         if (crossed(i)) {
-            R[H.o_v + i] = R[H.o_v + i] + miss(i, h) * R[H.o_im + i];
+            R[H.o_v + i] = r_add(R[H.o_v + i], r_mul(miss(i, h), R[H.o_im + i]));
         }
         if (crossed(i + 1u)) {
-            R[H.o_v + i] = R[H.o_v + i] - miss(i + 1u, h) * R[H.o_im + i];
+            R[H.o_v + i] = r_sub(R[H.o_v + i], r_mul(miss(i + 1u, h), R[H.o_im + i]));
         }
     }
 }
@@ -241,24 +272,24 @@ fn step(st: Step) {
             R[H.o_ps + j] = R[H.o_p + j];
         }
     }
-    kick(lo, hi, 0.5 * wts[0] * h);
+    kick(lo, hi, r_mul(r_mul(real(0.5), wts[0]), h));
     storageBarrier();
     for (var j = 0u; j < s; j++) {
         let wj = wts[j];
-        drift(lo, hi, wj * h);
-        t = t + wj * h;
+        drift(lo, hi, r_mul(wj, h));
+        t = r_add(t, r_mul(wj, h));
         storageBarrier();
         excess_forces(lo, hi);
         storageBarrier();
-        var c = 0.5 * wj * h;
+        var c = r_mul(r_mul(real(0.5), wj), h);
         if (j + 1u < s) {
-            c = 0.5 * (wj + wts[j + 1u]) * h;
+            c = r_mul(r_mul(real(0.5), r_add(wj, wts[j + 1u])), h);
         }
         // step::pulse_on: by the step's start, not the substep's time.
-        let on = has_pulse && st.t0 < pdur;
-        var f: f64 = 0.0;
+        let on = has_pulse && r_lt(st.t0, pdur);
+        var f = real(0.0);
         if (on) {
-            f = pforce * pulse_sin(t, omega);
+            f = r_mul(pforce, pulse_sin(t, omega));
         }
         accelerate_kick(lo, hi, on, f, c);
         storageBarrier();
@@ -272,135 +303,148 @@ fn step(st: Step) {
 // ---- the observers (observe.rs): invocation 0 ----
 
 // x_{j−1} − x_j of a per-bead rate at offset o, walls at rest.
-fn across(o: u32, j: u32) -> f64 {
-    var l: f64 = 0.0;
+fn across(o: u32, j: u32) -> real {
+    var l = real(0.0);
     if (j > 0u) {
         l = R[o + j - 1u];
     }
-    var r: f64 = 0.0;
+    var r = real(0.0);
     if (j < H.n) {
         r = R[o + j];
     }
-    return l - r;
+    return r_sub(l, r);
 }
 
 // observe::force_rates — (F, dF/dt, d²F/dt²) of contact j.
-fn force_rates(j: u32) -> vec3<f64> {
-    let d = R[H.o_d0 + j] + R[H.o_p + j];
+fn force_rates(j: u32) -> Q {
+    let d = r_add(R[H.o_d0 + j], R[H.o_p + j]);
     let k = R[H.o_k + j];
-    if (d <= 0.0 || k == 0.0) {
-        return vec3<f64>(0.0, 0.0, 0.0);
+    if (r_le(d, real(0.0)) || !r_nz(k)) {
+        return Q(real(0.0), real(0.0), real(0.0));
     }
-    let sq = sqrt(d);
+    let sq = r_sqrt(d);
     let r1 = across(H.o_v, j);
     let r2 = across(H.o_a, j);
-    return vec3<f64>(
-        k * d * sq,
-        1.5 * k * sq * r1,
-        0.75 * k * r1 * r1 / sq + 1.5 * k * sq * r2,
+    return Q(
+        r_mul(r_mul(k, d), sq),
+        r_mul(r_mul(r_mul(real(1.5), k), sq), r1),
+        r_add(
+            r_div(r_mul(r_mul(r_mul(real(0.75), k), r1), r1), sq),
+            r_mul(r_mul(r_mul(real(1.5), k), sq), r2),
+        ),
     );
 }
 
 // observe::bead_rates_with — (v, a, jerk) of bead i.
-fn bead_rates_with(i: u32, t: f64, left: f64, right: f64) -> vec3<f64> {
+fn bead_rates_with(i: u32, t: real, left: real, right: real) -> Q {
     let im = R[H.o_im + i];
-    var jerk = (left - right) * im;
+    var jerk = r_mul(r_sub(left, right), im);
     let pdur = R[H.sc + SC_PULSE_DURATION];
-    if ((H.flags & F_PULSE) != 0u && H.pulse_bead == i && t < pdur) {
+    if ((H.flags & F_PULSE) != 0u && H.pulse_bead == i && r_lt(t, pdur)) {
         let w = R[H.sc + SC_OMEGA];
-        jerk = jerk + R[H.sc + SC_PULSE_FORCE] * w * pulse_cos(t, w) * R[H.sc + SC_PULSE_IM];
+        jerk = r_add(jerk, r_mul(r_mul(r_mul(R[H.sc + SC_PULSE_FORCE], w), pulse_cos(t, w)), R[H.sc + SC_PULSE_IM]));
     }
-    return vec3<f64>(R[H.o_v + i], R[H.o_a + i], jerk);
+    return Q(R[H.o_v + i], R[H.o_a + i], jerk);
+}
+
+// a·x as quintic's terms are written (c · x, the constant first).
+fn cm(c: real, x: real) -> real {
+    return r_mul(c, x);
 }
 
 // observe::quintic.
-fn quintic(f0: f64, f1: f64, d0: f64, d1: f64, s0: f64, s1: f64) -> array<f64, 6> {
-    return array<f64, 6>(
-        f0,
-        d0,
-        0.5 * s0,
-        -10.0 * f0 - 6.0 * d0 - 1.5 * s0 + 0.5 * s1 - 4.0 * d1 + 10.0 * f1,
-        15.0 * f0 + 8.0 * d0 + 1.5 * s0 - s1 + 7.0 * d1 - 15.0 * f1,
-        -6.0 * f0 - 3.0 * d0 - 0.5 * s0 + 0.5 * s1 - 3.0 * d1 + 6.0 * f1,
-    );
+fn quintic(f0: real, f1: real, d0: real, d1: real, s0: real, s1: real) -> array<real, 6> {
+    var c3 = r_sub(cm(real(-10.0), f0), cm(real(6.0), d0));
+    c3 = r_sub(c3, cm(real(1.5), s0));
+    c3 = r_add(c3, cm(real(0.5), s1));
+    c3 = r_sub(c3, cm(real(4.0), d1));
+    c3 = r_add(c3, cm(real(10.0), f1));
+    var c4 = r_add(cm(real(15.0), f0), cm(real(8.0), d0));
+    c4 = r_add(c4, cm(real(1.5), s0));
+    c4 = r_sub(c4, s1);
+    c4 = r_add(c4, cm(real(7.0), d1));
+    c4 = r_sub(c4, cm(real(15.0), f1));
+    var c5 = r_sub(cm(real(-6.0), f0), cm(real(3.0), d0));
+    c5 = r_sub(c5, cm(real(0.5), s0));
+    c5 = r_add(c5, cm(real(0.5), s1));
+    c5 = r_sub(c5, cm(real(3.0), d1));
+    c5 = r_add(c5, cm(real(6.0), f1));
+    return array<real, 6>(f0, d0, cm(real(0.5), s0), c3, c4, c5);
 }
 
 // observe::poly and dpoly (Horner from 0, as the folds).
-fn poly(c: array<f64, 6>, x: f64) -> f64 {
-    var acc = 0.0 * x + c[5];
-    acc = acc * x + c[4];
-    acc = acc * x + c[3];
-    acc = acc * x + c[2];
-    acc = acc * x + c[1];
-    return acc * x + c[0];
+fn poly(c: array<real, 6>, x: real) -> real {
+    var acc = r_add(r_mul(real(0.0), x), c[5]);
+    acc = r_add(r_mul(acc, x), c[4]);
+    acc = r_add(r_mul(acc, x), c[3]);
+    acc = r_add(r_mul(acc, x), c[2]);
+    acc = r_add(r_mul(acc, x), c[1]);
+    return r_add(r_mul(acc, x), c[0]);
 }
 
-fn dpoly(c: array<f64, 6>, x: f64) -> f64 {
-    var acc = 0.0 * x + 5.0 * c[5];
-    acc = acc * x + 4.0 * c[4];
-    acc = acc * x + 3.0 * c[3];
-    acc = acc * x + 2.0 * c[2];
-    return acc * x + 1.0 * c[1];
+fn dpoly(c: array<real, 6>, x: real) -> real {
+    var acc = r_add(r_mul(real(0.0), x), r_mul(real(5.0), c[5]));
+    acc = r_add(r_mul(acc, x), r_mul(real(4.0), c[4]));
+    acc = r_add(r_mul(acc, x), r_mul(real(3.0), c[3]));
+    acc = r_add(r_mul(acc, x), r_mul(real(2.0), c[2]));
+    return r_add(r_mul(acc, x), r_mul(real(1.0), c[1]));
 }
 
 // observe::integral.
-fn integral(f0: f64, f1: f64, d0: f64, d1: f64, s0: f64, s1: f64) -> f64 {
-    return 0.5 * (f0 + f1) + 0.1 * (d0 - d1) + (s0 + s1) / 120.0;
+fn integral(f0: real, f1: real, d0: real, d1: real, s0: real, s1: real) -> real {
+    let a = r_mul(real(0.5), r_add(f0, f1));
+    let b = r_mul(real(0.1), r_sub(d0, d1));
+    return r_add(r_add(a, b), r_div(r_add(s0, s1), real(120.0)));
 }
 
 // observe::FirstPeak::see on the packed peak at o (has_last, t, q, found, t, value).
-fn first_peak_see(o: u32, t: f64, q: vec3<f64>, floor: f64) {
-    if (R[o + 5u] != 0.0) {
+fn first_peak_see(o: u32, t: real, q: Q, floor: real) {
+    if (r_nz(R[o + 5u])) {
         return;
     }
-    if (R[o] != 0.0) {
+    if (r_nz(R[o])) {
         let t0 = R[o + 1u];
-        let q0 = vec3<f64>(R[o + 2u], R[o + 3u], R[o + 4u]);
-        if (q0.y > 0.0 && q.y <= 0.0) {
-            let h = t - t0;
-            let c = quintic(q0.x, q.x, q0.y * h, q.y * h, q0.z * h * h, q.z * h * h);
+        let q0 = Q(R[o + 2u], R[o + 3u], R[o + 4u]);
+        if (r_gt(q0.y, real(0.0)) && r_le(q.y, real(0.0))) {
+            let h = r_sub(t, t0);
+            let c = quintic(q0.x, q.x, r_mul(q0.y, h), r_mul(q.y, h), r_mul(r_mul(q0.z, h), h), r_mul(r_mul(q.z, h), h));
             let pk = peak(c);
-            if (pk.y > floor) {
-                R[o + 5u] = 1.0;
-                R[o + 6u] = t0 + pk.x * h;
+            if (r_gt(pk.y, floor)) {
+                R[o + 5u] = real(1.0);
+                R[o + 6u] = r_add(t0, r_mul(pk.x, h));
                 R[o + 7u] = pk.y;
             }
         }
     }
-    R[o] = 1.0;
+    R[o] = real(1.0);
     R[o + 1u] = t;
     R[o + 2u] = q.x;
     R[o + 3u] = q.y;
     R[o + 4u] = q.z;
 }
 
-// The larger, as f64::max for numbers.
-fn fmax(a: f64, b: f64) -> f64 {
-    return select(a, b, b > a);
-}
-
 // observe::WallWatch::see on the packed watch at o (has_last, t, q, peak, impulse).
-fn wall_see(o: u32, t: f64, q: vec3<f64>, f0: f64) {
+fn wall_see(o: u32, t: real, q: Q, f0: real) {
     R[o + 5u] = fmax(R[o + 5u], q.x);
-    if (R[o] != 0.0) {
+    if (r_nz(R[o])) {
         let t0 = R[o + 1u];
-        let q0 = vec3<f64>(R[o + 2u], R[o + 3u], R[o + 4u]);
-        let h = t - t0;
-        let smooth_f = q0.x > 0.0 && q.x > 0.0;
-        var s0: f64 = 0.0;
-        var s1: f64 = 0.0;
+        let q0 = Q(R[o + 2u], R[o + 3u], R[o + 4u]);
+        let h = r_sub(t, t0);
+        let smooth_f = r_gt(q0.x, real(0.0)) && r_gt(q.x, real(0.0));
+        var s0 = real(0.0);
+        var s1 = real(0.0);
         if (smooth_f) {
-            s0 = q0.z * h * h;
-            s1 = q.z * h * h;
+            s0 = r_mul(r_mul(q0.z, h), h);
+            s1 = r_mul(r_mul(q.z, h), h);
         }
-        let d0 = q0.y * h;
-        let d1 = q.y * h;
-        R[o + 6u] = R[o + 6u] + h * (integral(q0.x, q.x, d0, d1, s0, s1) - f0);
-        if (smooth_f && q0.y > 0.0 && q.y <= 0.0) {
+        let d0 = r_mul(q0.y, h);
+        let d1 = r_mul(q.y, h);
+        R[o + 6u] = r_add(R[o + 6u], r_mul(h, r_sub(integral(q0.x, q.x, d0, d1, s0, s1), f0)));
+        if (smooth_f && r_gt(q0.y, real(0.0)) && r_le(q.y, real(0.0))) {
             R[o + 5u] = fmax(R[o + 5u], peak(quintic(q0.x, q.x, d0, d1, s0, s1)).y);
         }
     }
-    R[o] = 1.0;
+    R[o] = real(1.0);
     R[o + 1u] = t;
     R[o + 2u] = q.x;
     R[o + 3u] = q.y;
@@ -409,7 +453,7 @@ fn wall_see(o: u32, t: f64, q: vec3<f64>, f0: f64) {
 
 // run::Watch::see at t; returns SNAP_WIDTH when the last probe's pulse
 // arrived in this step.
-fn watch_see(t: f64) -> u32 {
+fn watch_see(t: real) -> u32 {
     let n = H.n;
     var snaps = 0u;
     let floor_v = R[H.sc + SC_FLOOR_V];
@@ -418,27 +462,31 @@ fn watch_see(t: f64) -> u32 {
         let i = probe_beads[H.probe_at + k];
         let vo = H.o_watch + 16u * k;
         let fo = vo + 8u;
-        let had = R[vo + 5u] != 0.0;
+        let had = r_nz(R[vo + 5u]);
         let fl = force_rates(i);
         let fr = force_rates(i + 1u);
         first_peak_see(vo, t, bead_rates_with(i, t, fl.y, fr.y), floor_v);
-        let base = 0.5 * (R[H.o_f0 + i] + R[H.o_f0 + i + 1u]);
-        let q = vec3<f64>(0.5 * (fl.x + fr.x) - base, 0.5 * (fl.y + fr.y), 0.5 * (fl.z + fr.z));
+        let base = r_mul(real(0.5), r_add(R[H.o_f0 + i], R[H.o_f0 + i + 1u]));
+        let q = Q(
+            r_sub(r_mul(real(0.5), r_add(fl.x, fr.x)), base),
+            r_mul(real(0.5), r_add(fl.y, fr.y)),
+            r_mul(real(0.5), r_add(fl.z, fr.z)),
+        );
         first_peak_see(fo, t, q, floor_f);
-        if (k + 1u == H.probes && !had && R[vo + 5u] != 0.0) {
+        if (k + 1u == H.probes && !had && r_nz(R[vo + 5u])) {
             snaps = SNAP_WIDTH;
         }
     }
     let far = H.o_watch + 16u * H.probes;
-    if (R[H.o_k] > 0.0) {
+    if (r_gt(R[H.o_k], real(0.0))) {
         wall_see(far + 8u, t, force_rates(0u), R[H.o_f0]);
     }
-    if (R[H.o_k + n] > 0.0) {
+    if (r_gt(R[H.o_k + n], real(0.0))) {
         wall_see(far + 15u, t, force_rates(n), R[H.o_f0 + n]);
     }
     if ((H.flags & F_RIGHT) != 0u) {
         let f = force_rates(n);
-        first_peak_see(far, t, vec3<f64>(f.x - R[H.o_f0 + n], f.y, f.z), floor_f);
+        first_peak_see(far, t, Q(r_sub(f.x, R[H.o_f0 + n]), f.y, f.z), floor_f);
     } else {
         let fl = force_rates(n - 1u);
         let fr = force_rates(n);
@@ -460,7 +508,7 @@ fn top() {
     }
     let sc = hd.sc;
     let t = R[sc + SC_T];
-    if ((hd.flags & F_END_AT) != 0u && t >= R[sc + SC_END_AT]) {
+    if ((hd.flags & F_END_AT) != 0u && r_ge(t, R[sc + SC_END_AT])) {
         hd.done = 1u;
         return;
     }
@@ -469,26 +517,28 @@ fn top() {
         hd.done = 1u;
         return;
     }
-    if ((hd.flags & F_DURATION) == 0u && t >= R[sc + SC_MAX_TIME]) {
+    if ((hd.flags & F_DURATION) == 0u && r_ge(t, R[sc + SC_MAX_TIME])) {
         hd.status = ST_TIME_CAP;
         hd.done = 1u;
         return;
     }
+    // run::step_end of the next step.
     let nlo = hd.steps_lo + 1u;
     var nhi = hd.steps_hi;
     if (nlo == 0u) {
         nhi += 1u;
     }
-    var t1 = (f64(nhi) * 4294967296.0 + f64(nlo)) * R[sc + SC_H];
+    let h = R[sc + SC_H];
+    var t1 = r_mul(r_count(nlo, nhi), h);
     if ((hd.flags & F_PULSE) != 0u) {
         let tau = R[sc + SC_PULSE_DURATION];
-        if (abs(t1 - tau) <= 1e-9 * R[sc + SC_H]) {
+        if (r_le(r_abs(r_sub(t1, tau)), r_mul(real(1e-9), h))) {
             t1 = tau;
         }
     }
     if ((hd.flags & F_DURATION) != 0u) {
         let d = R[sc + SC_DURATION];
-        if (t1 > d * (1.0 - 1e-12)) {
+        if (r_gt(t1, r_mul(d, ALMOST_ONE))) {
             t1 = d;
         }
     }
@@ -496,7 +546,7 @@ fn top() {
     ws.lo = hd.lo;
     ws.hi = hd.hi;
     ws.t0 = t;
-    ws.h = t1 - t;
+    ws.h = r_sub(t1, t);
     ws.t1 = t1;
 }
 
@@ -507,7 +557,7 @@ fn after_step(st: Step) {
     let n = H.n;
     let sc = H.sc;
     let pdur = R[sc + SC_PULSE_DURATION];
-    let pulse_on = (H.flags & F_PULSE) != 0u && st.t0 + st.h < pdur;
+    let pulse_on = (H.flags & F_PULSE) != 0u && r_lt(r_add(st.t0, st.h), pdur);
     let first = atomicLoad(&first_moving);
     let last = atomicLoad(&last_moving);
     var lo = 0u;
@@ -542,14 +592,14 @@ fn after_step(st: Step) {
         hd.wlo = lo;
         hd.whi = hi;
     }
-    if ((H.flags & F_PULSE) != 0u && (hd.snaps & SNAP_ENERGY) == 0u && t >= pdur) {
+    if ((H.flags & F_PULSE) != 0u && (hd.snaps & SNAP_ENERGY) == 0u && r_ge(t, pdur)) {
         snaps |= SNAP_ENERGY;
     }
     hd.snaps |= snaps;
     if ((hd.flags & F_END_AT) == 0u) {
         let far = H.o_watch + 16u * H.probes;
-        if (R[far + 5u] != 0.0) {
-            R[sc + SC_END_AT] = R[far + 6u] * (1.0 + END_MARGIN);
+        if (r_nz(R[far + 5u])) {
+            R[sc + SC_END_AT] = r_mul(R[far + 6u], END_SCALE);
             hd.flags |= F_END_AT;
         }
     }
@@ -574,6 +624,7 @@ fn main(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) 
     if (H.done != 0u) {
         return;
     }
+    one_s = r_hi(R[H.sc + SC_ONE]);
     let steps = workgroupUniformLoad(&budget);
     for (var j = 0u; j < H.stages; j++) {
         wts[j] = R[H.o_w + j];
@@ -591,9 +642,9 @@ fn main(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) 
         }
         step(st);
         // State::shrink: the first and last moving bead of the old window.
-        let pulse_on = (H.flags & F_PULSE) != 0u && st.t0 + st.h < R[H.sc + SC_PULSE_DURATION];
+        let pulse_on = (H.flags & F_PULSE) != 0u && r_lt(r_add(st.t0, st.h), R[H.sc + SC_PULSE_DURATION]);
         for (var i = st.lo + me; i < st.hi; i += WG) {
-            if (R[H.o_v + i] != 0.0 || R[H.o_a + i] != 0.0 || (pulse_on && i == H.pulse_bead)) {
+            if (r_nz(R[H.o_v + i]) || r_nz(R[H.o_a + i]) || (pulse_on && i == H.pulse_bead)) {
                 atomicMin(&first_moving, i);
                 atomicMax(&last_moving, i);
             }
@@ -618,23 +669,23 @@ fn main(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) 
         }
         if (after.check != 0u) {
             // run::overlap_ratio over the window and the finiteness test.
-            var m: f64 = 0.0;
+            var m = real(0.0);
             let top_j = min(after.hi, n);
             for (var j = after.lo + me; j <= top_j; j += WG) {
-                if (R[H.o_k + j] != 0.0) {
-                    let r = (R[H.o_d0 + j] + R[H.o_p + j]) / R[H.o_r + j];
+                if (r_nz(R[H.o_k + j])) {
+                    let r = r_div(r_add(R[H.o_d0 + j], R[H.o_p + j]), R[H.o_r + j]);
                     m = fmax(m, r);
                 }
             }
             red[me] = m;
             for (var i = after.lo + me; i < after.hi; i += WG) {
-                if (!(abs(R[H.o_v + i]) <= F64_MAX)) {
+                if (!r_finite(R[H.o_v + i])) {
                     atomicStore(&bad, 1u);
                 }
             }
             workgroupBarrier();
             if (me == 0u) {
-                var mm: f64 = 0.0;
+                var mm = real(0.0);
                 for (var i = 0u; i < WG; i++) {
                     mm = fmax(mm, red[i]);
                 }

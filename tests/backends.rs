@@ -343,15 +343,20 @@ fn shaders_validate_with_naga() {
         .validate(&module)
         .unwrap_or_else(|e| panic!("{}: {e:?}", p.name()));
     }
-    let src = hertz_cradle::backend::gpu::chain_shader();
-    let module = naga::front::wgsl::parse_str(&src)
-        .unwrap_or_else(|e| panic!("chains: {}", e.emit_to_string(&src)));
-    naga::valid::Validator::new(
-        naga::valid::ValidationFlags::all(),
-        naga::valid::Capabilities::FLOAT64,
-    )
-    .validate(&module)
-    .unwrap_or_else(|e| panic!("chains: {e:?}"));
+    for p in [Precision::F64, Precision::Df64] {
+        let src = hertz_cradle::backend::gpu::chain_shader(p);
+        let module = naga::front::wgsl::parse_str(&src)
+            .unwrap_or_else(|e| panic!("chains {}: {}", p.name(), e.emit_to_string(&src)));
+        // df64 chains need no 64-bit floats of the device.
+        let caps = if p == Precision::Df64 {
+            naga::valid::Capabilities::empty()
+        } else {
+            naga::valid::Capabilities::FLOAT64
+        };
+        naga::valid::Validator::new(naga::valid::ValidationFlags::all(), caps)
+            .validate(&module)
+            .unwrap_or_else(|e| panic!("chains {}: {e:?}", p.name()));
+    }
 }
 
 /// The shader's df64 arithmetic is `engine::real::Df64`'s, operation for
@@ -683,7 +688,7 @@ fn shader_cites_only_rust_items_that_exist() {
     let body = [
         hertz_cradle::backend::gpu::SHADER_BODY,
         hertz_cradle::backend::gpu::WIDE_BODY,
-        &hertz_cradle::backend::gpu::chain_shader(),
+        &hertz_cradle::backend::gpu::chain_shader(Precision::F64),
     ]
     .concat();
     fn rust_under(dir: &std::path::Path, out: &mut String) {
@@ -1048,12 +1053,52 @@ fn gpu_chain_kernel_gives_the_cpus_chain_outcomes() {
     capped.plan.max_steps = 777;
     jobs.push(Some(capped));
     jobs.insert(1, None);
+    // The same chains in df64 (pairs of f32), in the same batch: the kernel
+    // of each precision runs its own, and the outcomes come back in order
+    // (all but the 200-bead dimer, whose df64 run is lavapipe's slowest).
+    let f64_jobs = jobs.len();
+    let pairs = [0, 3, 4, 5];
+    for k in pairs {
+        let mut j = jobs[k].clone().unwrap();
+        j.plan.precision = Precision::Df64;
+        jobs.push(Some(j));
+    }
     let source = |k: usize| Ok(jobs[k].clone());
     let cpu = Cpu.run_chains(jobs.len(), &source).unwrap();
     let gpu = g.run_chains(jobs.len(), &source).unwrap();
     assert_eq!(cpu.len(), gpu.len());
     for (k, (c, d)) in cpu.iter().zip(&gpu).enumerate() {
         assert_eq!(format!("{c:?}"), format!("{d:?}"), "chain {k}");
+    }
+    // df64 gives f64's outcomes to its 48 bits' round-off (not f64's bits).
+    for (d, k) in (f64_jobs..).zip(pairs) {
+        let (a, b) = (&gpu[k], &gpu[d]);
+        assert_eq!(
+            (a.status, a.steps),
+            (b.status, b.steps),
+            "chain {k} in df64"
+        );
+        assert_ne!(
+            format!("{a:?}"),
+            format!("{b:?}"),
+            "chain {k}: df64 ran as f64"
+        );
+        let scale = a.v.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        for (x, y) in a.v.iter().zip(&b.v) {
+            assert!(
+                (x - y).abs() <= 1e-9 * scale,
+                "chain {k}: v {x} (f64) vs {y} (df64)"
+            );
+        }
+        for (x, y) in a.probes.iter().zip(&b.probes) {
+            let dt = (x.arrival - y.arrival).abs();
+            assert!(
+                dt <= 1e-9 * a.t_end || (x.arrival.is_nan() && y.arrival.is_nan()),
+                "chain {k}: arrival {} (f64) vs {} (df64)",
+                x.arrival,
+                y.arrival
+            );
+        }
     }
     let status = |o: &ChainOutcome| o.status;
     assert_eq!(status(&gpu[1]), Status::Invalid);

@@ -6,7 +6,7 @@
 
 use hertz_cradle::engine::granular::{self, run::run_with, Beads, ChainOutcome, NoRows};
 use hertz_cradle::engine::{Overrides, Solver, Status};
-use hertz_cradle::scene::{Method, Scene};
+use hertz_cradle::scene::{Method, Precision, Scene};
 
 fn chain(text: &str) -> (Scene, Beads) {
     let s = Scene::from_toml_str("chain", text).unwrap_or_else(|e| panic!("{e}\n{text}"));
@@ -15,10 +15,20 @@ fn chain(text: &str) -> (Scene, Beads) {
 }
 
 fn solve(text: &str, method: Option<Method>, tol: Option<f64>) -> (Beads, ChainOutcome) {
+    solve_in(text, method, tol, Precision::F64)
+}
+
+fn solve_in(
+    text: &str,
+    method: Option<Method>,
+    tol: Option<f64>,
+    precision: Precision,
+) -> (Beads, ChainOutcome) {
     let (s, b) = chain(text);
     let o = Overrides {
         method,
         tolerance: tol,
+        precision: Some(precision),
         ..Default::default()
     };
     let solver = Solver::resolve(&s, &o).unwrap();
@@ -39,17 +49,30 @@ fn struck(n: usize, v: f64, extra: &str) -> String {
 #[test]
 fn a_precompressed_chain_at_rest_stays_at_rest_exactly() {
     // 10^4 beads of two materials and sizes (unequal stiffnesses, walls of
-    // a third material) under 10 N: 10^6 steps change no bit.
+    // a third material) under 10 N: 10^6 steps change no bit, in f64 and
+    // in df64 (whose f0 is computed in df64 as its forces are).
     let text = "balls = 10000\n[pattern]\nradius = [0.005, 0.0035]\nyoung_modulus = [200e9, 70e9]\n\
                 [walls]\nleft = true\nright = true\nyoung_modulus = 100e9\nprecompression = 10.0\n\
                 [launch]\nballs = 1\nvelocity = 0.0\n[solver]\ndt = 1e-8\n[stop]\nduration = 1e-2\n";
-    let (b, o) = solve(text, None, None);
-    assert_eq!(o.steps, 1_000_000);
-    assert_eq!(o.status, Status::Ok, "{o:?}");
-    assert!(o.v.iter().all(|&v| v == 0.0), "a bead moved");
-    let w = o.left_wall.unwrap();
-    assert_eq!(w.peak_force, b.f0[0]);
-    assert_eq!(w.impulse, 0.0);
+    for p in [Precision::F64, Precision::Df64] {
+        let (b, o) = solve_in(text, None, None, p);
+        assert_eq!(o.steps, 1_000_000);
+        assert_eq!(o.status, Status::Ok, "{o:?}");
+        assert!(
+            o.v.iter().all(|&v| v == 0.0),
+            "a bead moved in {}",
+            p.name()
+        );
+        assert_eq!(o.fragments, 1);
+        let w = o.left_wall.unwrap();
+        assert_eq!(w.impulse, 0.0, "{}", p.name());
+        if p == Precision::F64 {
+            assert_eq!(w.peak_force, b.f0[0]);
+        } else {
+            assert!((w.peak_force / b.f0[0] - 1.0).abs() < 1e-13);
+        }
+    }
+    let (b, _) = solve(text, None, None);
     // The static overlaps balance the force: k·δ0^{3/2} = F0.
     for j in 0..=b.n {
         assert!(
@@ -69,11 +92,14 @@ fn skipping_beads_at_rest_changes_no_bit() {
     ] {
         let (s, b) = chain(&text);
         let solver = Solver::resolve(&s, &Overrides::default()).unwrap();
-        let plan = granular::plan(&b, &solver, None);
-        let windowed = run_with(&b, &plan, &mut NoRows, false);
-        let whole = run_with(&b, &plan, &mut NoRows, true);
-        // Debug text: NaN columns compare equal, every float to its last bit.
-        assert_eq!(format!("{windowed:?}"), format!("{whole:?}"), "{text}");
+        let mut plan = granular::plan(&b, &solver, None);
+        for p in [Precision::F64, Precision::Df64] {
+            plan.precision = p;
+            let windowed = run_with(&b, &plan, &mut NoRows, false);
+            let whole = run_with(&b, &plan, &mut NoRows, true);
+            // Debug text: NaN columns compare equal, every float to its last bit.
+            assert_eq!(format!("{windowed:?}"), format!("{whole:?}"), "{text}");
+        }
     }
 }
 

@@ -103,7 +103,8 @@ pub struct Gpu {
     profile: Profile,
     stats: Tracker,
     /// The granular-chain pipeline, compiled on first use.
-    chain_pipe: Mutex<Option<Arc<chains::ChainPipe>>>,
+    /// The chain pipeline of each precision (f64, df64), built on first use.
+    chain_pipe: Mutex<[Option<Arc<chains::ChainPipe>>; 2]>,
 }
 
 impl Gpu {
@@ -162,7 +163,7 @@ impl Gpu {
                 Profile::HARDWARE
             },
             stats: Tracker::default(),
-            chain_pipe: Mutex::new(None),
+            chain_pipe: Mutex::new([None, None]),
         };
         Ok(gpu)
     }

@@ -70,7 +70,7 @@ impl Gpu {
     /// the precision and class, before any scene runs.
     pub fn prepare(&self, needs: &Needs) -> Result<()> {
         if needs.chains {
-            return self.chain_pipe().map(|_| ());
+            return self.chain_pipe(needs.precision).map(|_| ());
         }
         if !needs.hertz {
             return Ok(());

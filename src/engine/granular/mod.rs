@@ -23,8 +23,9 @@ pub mod run;
 pub mod step;
 
 use super::contact::{contact_time, hertz_energy, hertz_stiffness};
+use super::real::Real;
 use super::solver::{weights, Solver, StepRule};
-use crate::scene::{Pulse, Record, Scene};
+use crate::scene::{Precision, Pulse, Record, Scene};
 
 pub use observe::{ChainOutcome, ProbeOutcome, WallOutcome};
 pub use run::{run, NoRows, Rows};
@@ -79,9 +80,62 @@ pub struct Beads {
 /// same values as [`super::contact::hertz_force`], written without a branch
 /// so the chain's force loop vectorises.
 #[inline(always)]
-pub fn hertz(k: f64, d: f64) -> f64 {
-    let d = d.max(0.0);
+pub fn hertz<R: Real>(k: R, d: R) -> R {
+    let d = d.max(R::zero());
     k * d * d.sqrt()
+}
+
+/// What a step reads of a chain, in the precision `R` it runs in
+/// (docs/SPEC.md §9): each contact's stiffness, rest overlap, the force
+/// there (computed in `R` as the step computes forces, so a chain at rest
+/// has zero excess force bit for bit in every precision) and the radius
+/// its overlap is measured against; each bead's 1/m; the pulse.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Consts<R> {
+    pub k: Vec<R>,
+    pub d0: Vec<R>,
+    pub f0: Vec<R>,
+    /// [`run::contact_radius`] of each contact.
+    pub r: Vec<R>,
+    pub inv_mass: Vec<R>,
+    pub pulse: Option<PulseConsts<R>>,
+}
+
+/// A half-sine pulse in the step's precision.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PulseConsts<R> {
+    pub bead: usize,
+    pub force: R,
+    /// ω = π/τ.
+    pub omega: R,
+    /// τ (s).
+    pub duration: R,
+    /// 1/m of its bead.
+    pub inv_mass: R,
+}
+
+impl<R: Real> Consts<R> {
+    pub fn of(b: &Beads) -> Consts<R> {
+        let conv = |x: &[f64]| x.iter().map(|&x| R::of(x)).collect::<Vec<R>>();
+        let (k, d0) = (conv(&b.k), conv(&b.d0));
+        let f0 = k.iter().zip(&d0).map(|(&k, &d)| hertz(k, d)).collect();
+        Consts {
+            f0,
+            k,
+            d0,
+            r: (0..=b.n)
+                .map(|j| R::of(run::contact_radius(b, j)))
+                .collect(),
+            inv_mass: conv(&b.inv_mass),
+            pulse: b.pulse.as_ref().map(|p| PulseConsts {
+                bead: p.bead,
+                force: R::of(p.force),
+                omega: R::of(p.omega()),
+                duration: R::of(p.duration),
+                inv_mass: R::of(b.inv_mass[p.bead]),
+            }),
+        }
+    }
 }
 
 impl Beads {
@@ -284,8 +338,9 @@ pub fn nesterenko_speed(k: f64, m: f64, a: f64, v_m: f64) -> f64 {
 }
 
 /// What a chain run accepts of a resolved solver: the hertz model (the
-/// comparison models are for cradles) in f64 (the chain engine's only
-/// precision so far): anything else is refused, never silently replaced.
+/// comparison models are for cradles) in f64 or df64 (f32's 24 bits cannot
+/// carry a wave over 10^5–10^6 steps to any useful tolerance): anything
+/// else is refused, never silently replaced.
 pub fn check_solver(solver: &Solver) -> Result<(), crate::error::InputError> {
     if solver.model != crate::engine::Model::Hertz {
         return Err(crate::error::flag(
@@ -294,11 +349,11 @@ pub fn check_solver(solver: &Solver) -> Result<(), crate::error::InputError> {
             "hertz for a granular chain (the comparison models are for cradles)",
         ));
     }
-    if solver.precision != crate::scene::Precision::F64 {
+    if solver.precision == Precision::F32 {
         return Err(crate::error::flag(
             "--precision",
             solver.precision.name(),
-            "f64 for a granular chain (the chain engine runs in f64 only so far; a scene's [solver] precision counts too)",
+            "f64 or df64 for a granular chain (f32 cannot carry a wave over a long run; a scene's [solver] precision counts too)",
         ));
     }
     Ok(())
@@ -334,6 +389,9 @@ pub struct Plan {
     pub max_steps: u64,
     /// Trace row spacing (s): a whole number of steps.
     pub every: Option<f64>,
+    /// What the step computes in: f64, or df64 (pairs of f32, the GPU's
+    /// choice where f64 is slow or missing).
+    pub precision: Precision,
 }
 
 impl Plan {
@@ -435,5 +493,6 @@ pub fn plan(beads: &Beads, solver: &Solver, every: Option<f64>) -> Plan {
         max_time,
         max_steps: solver.max_steps,
         every,
+        precision: solver.precision,
     }
 }

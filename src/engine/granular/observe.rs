@@ -8,117 +8,134 @@
 //! are good to O(h^6) of the step, not the nearest step's value.
 
 use super::step::State;
-use super::Beads;
+use super::Consts;
+use crate::engine::real::Real;
 
 /// Coefficients c0..c5 (in θ ∈ [0, 1]) of the quintic with values f, first
 /// derivatives d and second derivatives s (per unit θ) at both ends.
-pub fn quintic(f: [f64; 2], d: [f64; 2], s: [f64; 2]) -> [f64; 6] {
+pub fn quintic<R: Real>(f: [R; 2], d: [R; 2], s: [R; 2]) -> [R; 6] {
     let ([f0, f1], [d0, d1], [s0, s1]) = (f, d, s);
+    let c = R::of;
     [
         f0,
         d0,
-        0.5 * s0,
-        -10.0 * f0 - 6.0 * d0 - 1.5 * s0 + 0.5 * s1 - 4.0 * d1 + 10.0 * f1,
-        15.0 * f0 + 8.0 * d0 + 1.5 * s0 - s1 + 7.0 * d1 - 15.0 * f1,
-        -6.0 * f0 - 3.0 * d0 - 0.5 * s0 + 0.5 * s1 - 3.0 * d1 + 6.0 * f1,
+        c(0.5) * s0,
+        c(-10.0) * f0 - c(6.0) * d0 - c(1.5) * s0 + c(0.5) * s1 - c(4.0) * d1 + c(10.0) * f1,
+        c(15.0) * f0 + c(8.0) * d0 + c(1.5) * s0 - s1 + c(7.0) * d1 - c(15.0) * f1,
+        c(-6.0) * f0 - c(3.0) * d0 - c(0.5) * s0 + c(0.5) * s1 - c(3.0) * d1 + c(6.0) * f1,
     ]
 }
 
-fn poly(c: &[f64; 6], x: f64) -> f64 {
-    c.iter().rev().fold(0.0, |acc, &ci| acc * x + ci)
+fn poly<R: Real>(c: &[R; 6], x: R) -> R {
+    c.iter().rev().fold(R::zero(), |acc, &ci| acc * x + ci)
 }
 
-fn dpoly(c: &[f64; 6], x: f64) -> f64 {
-    (1..6).rev().fold(0.0, |acc, i| acc * x + i as f64 * c[i])
+fn dpoly<R: Real>(c: &[R; 6], x: R) -> R {
+    (1..6)
+        .rev()
+        .fold(R::zero(), |acc, i| acc * x + R::of(i as f64) * c[i])
 }
 
 /// The maximum of the quintic inside [0, 1] whose derivative falls from
 /// ≥ 0 at 0 to ≤ 0 at 1: (θ, value), by bisection on the derivative.
-pub fn peak(c: &[f64; 6]) -> (f64, f64) {
-    let (mut a, mut b) = (0.0f64, 1.0f64);
+pub fn peak<R: Real>(c: &[R; 6]) -> (R, R) {
+    let (mut a, mut b) = (R::zero(), R::one());
+    let half = R::of(0.5);
     for _ in 0..60 {
-        let m = 0.5 * (a + b);
-        if dpoly(c, m) > 0.0 {
+        let m = half * (a + b);
+        if dpoly(c, m) > R::zero() {
             a = m;
         } else {
             b = m;
         }
     }
-    let x = 0.5 * (a + b);
+    let x = half * (a + b);
     (x, poly(c, x))
 }
 
 /// ∫₀¹ of the quintic (exact).
-pub fn integral(f: [f64; 2], d: [f64; 2], s: [f64; 2]) -> f64 {
-    0.5 * (f[0] + f[1]) + 0.1 * (d[0] - d[1]) + (s[0] + s[1]) / 120.0
+pub fn integral<R: Real>(f: [R; 2], d: [R; 2], s: [R; 2]) -> R {
+    R::of(0.5) * (f[0] + f[1]) + R::of(0.1) * (d[0] - d[1]) + (s[0] + s[1]) / R::of(120.0)
 }
 
 /// x_{j−1} − x_j for a per-bead rate x (v or a) across contact j: the rate
 /// of δ_j; the walls do not move.
-fn across(x: &[f64], j: usize) -> f64 {
-    let l = if j == 0 { 0.0 } else { x[j - 1] };
-    let r = x.get(j).copied().unwrap_or(0.0);
+fn across<R: Real>(x: &[R], j: usize) -> R {
+    let l = if j == 0 { R::zero() } else { x[j - 1] };
+    let r = x.get(j).copied().unwrap_or(R::zero());
     l - r
 }
 
 /// Force of contact j and its first two rates: (F, dF/dt, d²F/dt²).
 /// d²F/dt² has a 1/√δ term: near an opening contact it is left out
 /// (the polynomial then is cubic in effect; the force there is small).
-pub fn force_rates(b: &Beads, st: &State, j: usize) -> (f64, f64, f64) {
-    let d = b.d0[j] + st.p[j];
-    if d <= 0.0 || b.k[j] == 0.0 {
-        return (0.0, 0.0, 0.0);
+pub fn force_rates<R: Real>(c: &Consts<R>, st: &State<R>, j: usize) -> (R, R, R) {
+    let d = c.d0[j] + st.p[j];
+    let zero = R::zero();
+    if d <= zero || c.k[j] == zero {
+        return (zero, zero, zero);
     }
-    let k = b.k[j];
+    let k = c.k[j];
     let sq = d.sqrt();
     let (r1, r2) = (across(&st.v, j), across(&st.a, j));
+    let (c15, c075) = (R::of(1.5), R::of(0.75));
     (
         k * d * sq,
-        1.5 * k * sq * r1,
-        0.75 * k * r1 * r1 / sq + 1.5 * k * sq * r2,
+        c15 * k * sq * r1,
+        c075 * k * r1 * r1 / sq + c15 * k * sq * r2,
     )
 }
 
 /// Velocity, acceleration and jerk of bead i.
-pub fn bead_rates(b: &Beads, st: &State, i: usize, t: f64) -> (f64, f64, f64) {
-    let (fl, fr) = (force_rates(b, st, i), force_rates(b, st, i + 1));
-    bead_rates_with(b, st, i, t, fl.1, fr.1)
+pub fn bead_rates<R: Real>(c: &Consts<R>, st: &State<R>, i: usize, t: R) -> (R, R, R) {
+    let (fl, fr) = (force_rates(c, st, i), force_rates(c, st, i + 1));
+    bead_rates_with(c, st, i, t, fl.1, fr.1)
 }
 
 /// [`bead_rates`] from the rates of bead i's contact forces, left and right
 /// (N/s), when the caller has them.
-pub fn bead_rates_with(
-    b: &Beads,
-    st: &State,
+pub fn bead_rates_with<R: Real>(
+    c: &Consts<R>,
+    st: &State<R>,
     i: usize,
-    t: f64,
-    left: f64,
-    right: f64,
-) -> (f64, f64, f64) {
-    let mut jerk = (left - right) * b.inv_mass[i];
-    if let Some(p) = b.pulse.as_ref().filter(|p| p.bead == i && t < p.duration) {
-        let w = p.omega();
-        jerk += p.force * w * super::step::pulse_cos(t, w) * b.inv_mass[i];
+    t: R,
+    left: R,
+    right: R,
+) -> (R, R, R) {
+    let mut jerk = (left - right) * c.inv_mass[i];
+    if let Some(p) = c.pulse.as_ref().filter(|p| p.bead == i && t < p.duration) {
+        let w = p.omega;
+        jerk = jerk + p.force * w * super::step::pulse_cos(t, w) * p.inv_mass;
     }
     (st.v[i], st.a[i], jerk)
 }
 
 /// The first peak of a quantity above a floor: watched step by step.
-#[derive(Clone, Debug, Default)]
-pub struct FirstPeak {
-    last: Option<(f64, [f64; 3])>,
+#[derive(Clone, Debug)]
+pub struct FirstPeak<R = f64> {
+    last: Option<(R, [R; 3])>,
     /// (time, value) of the first local maximum above the floor.
-    pub found: Option<(f64, f64)>,
+    pub found: Option<(R, R)>,
 }
 
-impl FirstPeak {
+impl<R> Default for FirstPeak<R> {
+    fn default() -> Self {
+        FirstPeak {
+            last: None,
+            found: None,
+        }
+    }
+}
+
+impl<R: Real> FirstPeak<R> {
     /// Watch the quantity with rates `q` = (value, rate, second rate) at `t`.
-    pub fn see(&mut self, t: f64, q: [f64; 3], floor: f64) {
+    pub fn see(&mut self, t: R, q: [R; 3], floor: R) {
         if self.found.is_some() {
             return;
         }
+        let zero = R::zero();
         if let Some((t0, q0)) = self.last {
-            if q0[1] > 0.0 && q[1] <= 0.0 {
+            if q0[1] > zero && q[1] <= zero {
                 let h = t - t0;
                 let c = quintic(
                     [q0[0], q[0]],
@@ -141,44 +158,50 @@ pub const FIRST_PEAK_REALS: usize = 8;
 pub const WALL_WATCH_REALS: usize = 7;
 
 /// `last` as (has, t, q0, q1, q2).
-fn pack_last(last: &Option<(f64, [f64; 3])>) -> [f64; 5] {
+fn pack_last<R: Real>(last: &Option<(R, [R; 3])>) -> [R; 5] {
     match last {
-        Some((t, q)) => [1.0, *t, q[0], q[1], q[2]],
-        None => [0.0; 5],
+        Some((t, q)) => [R::one(), *t, q[0], q[1], q[2]],
+        None => [R::zero(); 5],
     }
 }
 
-fn unpack_last(r: &[f64]) -> Option<(f64, [f64; 3])> {
-    (r[0] != 0.0).then_some((r[1], [r[2], r[3], r[4]]))
+fn unpack_last<R: Real>(r: &[R]) -> Option<(R, [R; 3])> {
+    (r[0] != R::zero()).then_some((r[1], [r[2], r[3], r[4]]))
 }
 
-impl FirstPeak {
+impl<R: Real> FirstPeak<R> {
     /// As reals for the GPU twin: has_last, last t and q, found, its t and value.
-    pub fn pack(&self) -> [f64; FIRST_PEAK_REALS] {
+    pub fn pack(&self) -> [R; FIRST_PEAK_REALS] {
         let l = pack_last(&self.last);
+        let zero = R::zero();
         let (f, ft, fv) = match self.found {
-            Some((t, v)) => (1.0, t, v),
-            None => (0.0, 0.0, 0.0),
+            Some((t, v)) => (R::one(), t, v),
+            None => (zero, zero, zero),
         };
         [l[0], l[1], l[2], l[3], l[4], f, ft, fv]
     }
 
-    pub fn unpack(r: &[f64]) -> FirstPeak {
+    pub fn unpack(r: &[R]) -> FirstPeak<R> {
         FirstPeak {
             last: unpack_last(r),
-            found: (r[5] != 0.0).then_some((r[6], r[7])),
+            found: (r[5] != R::zero()).then_some((r[6], r[7])),
         }
+    }
+
+    /// `found` in f64.
+    pub fn found64(&self) -> Option<(f64, f64)> {
+        self.found.map(|(t, v)| (t.to64(), v.to64()))
     }
 }
 
-impl WallWatch {
+impl<R: Real> WallWatch<R> {
     /// As reals for the GPU twin: has_last, last t and q, peak, impulse.
-    pub fn pack(&self) -> [f64; WALL_WATCH_REALS] {
+    pub fn pack(&self) -> [R; WALL_WATCH_REALS] {
         let l = pack_last(&self.last);
         [l[0], l[1], l[2], l[3], l[4], self.peak, self.impulse]
     }
 
-    pub fn unpack(r: &[f64]) -> WallWatch {
+    pub fn unpack(r: &[R]) -> WallWatch<R> {
         WallWatch {
             last: unpack_last(r),
             peak: r[5],
@@ -188,27 +211,38 @@ impl WallWatch {
 }
 
 /// A wall's largest force and its impulse (of the force above the static one).
-#[derive(Clone, Debug, Default)]
-pub struct WallWatch {
-    last: Option<(f64, [f64; 3])>,
-    pub peak: f64,
-    pub impulse: f64,
+#[derive(Clone, Debug)]
+pub struct WallWatch<R = f64> {
+    last: Option<(R, [R; 3])>,
+    pub peak: R,
+    pub impulse: R,
 }
 
-impl WallWatch {
-    pub fn see(&mut self, t: f64, q: [f64; 3], f0: f64) {
+impl<R: Real> Default for WallWatch<R> {
+    fn default() -> Self {
+        WallWatch {
+            last: None,
+            peak: R::zero(),
+            impulse: R::zero(),
+        }
+    }
+}
+
+impl<R: Real> WallWatch<R> {
+    pub fn see(&mut self, t: R, q: [R; 3], f0: R) {
+        let zero = R::zero();
         self.peak = self.peak.max(q[0]);
         if let Some((t0, q0)) = self.last {
             let h = t - t0;
-            let smooth = q0[0] > 0.0 && q[0] > 0.0;
+            let smooth = q0[0] > zero && q[0] > zero;
             let (s0, s1) = if smooth {
                 (q0[2] * h * h, q[2] * h * h)
             } else {
-                (0.0, 0.0)
+                (zero, zero)
             };
             let (f, d, s) = ([q0[0], q[0]], [q0[1] * h, q[1] * h], [s0, s1]);
-            self.impulse += h * (integral(f, d, s) - f0);
-            if smooth && q0[1] > 0.0 && q[1] <= 0.0 {
+            self.impulse = self.impulse + h * (integral(f, d, s) - f0);
+            if smooth && q0[1] > zero && q[1] <= zero {
                 self.peak = self.peak.max(peak(&quintic(f, d, s)).1);
             }
         }

@@ -4,9 +4,11 @@
 
 use super::observe::*;
 use super::step::{step, State};
-use super::{Beads, Plan, END_MARGIN, PEAK_FLOOR};
+use super::{Beads, Consts, Plan, END_MARGIN, PEAK_FLOOR};
 use crate::engine::outcome::MAX_OVERLAP_RATIO;
+use crate::engine::real::{Df64, Real};
 use crate::engine::Status;
+use crate::scene::Precision;
 
 /// Receives the state at every trace row (t = 0, every, 2·every, …, and
 /// the end).
@@ -24,27 +26,56 @@ impl Rows for NoRows {
 /// Check overlaps and finiteness every this many steps (over the window).
 pub const CHECK_EVERY: u64 = 16;
 
-/// Run `beads` as planned, rows to `rows`.
+/// Run `beads` as planned (in the plan's precision), rows to `rows`.
 pub fn run(beads: &Beads, plan: &Plan, rows: &mut dyn Rows) -> ChainOutcome {
     run_with(beads, plan, rows, false)
 }
 
 /// [`run`], the window the whole chain when `whole` (for tests).
 pub fn run_with(b: &Beads, plan: &Plan, rows: &mut dyn Rows, whole: bool) -> ChainOutcome {
+    match plan.precision {
+        Precision::Df64 => run_in::<Df64>(b, plan, rows, whole),
+        // f32 is refused before a plan is made (`check_solver`).
+        Precision::F64 | Precision::F32 => run_in::<f64>(b, plan, rows, whole),
+    }
+}
+
+/// The time step k of a plan ends at (steps end at k·h exactly; the one
+/// nearest a pulse's end lands on it, for rounding: the step after must
+/// start at τ, `step::pulse_on`; the last one lands on the duration).
+pub fn step_end<R: Real>(c: &Consts<R>, plan: &Plan, k: u64) -> R {
+    let h = R::of(plan.h);
+    let mut t1 = R::of(k as f64) * h;
+    if let Some(p) = &c.pulse {
+        if (t1 - p.duration).abs() <= R::of(1e-9) * h {
+            t1 = p.duration;
+        }
+    }
+    if let Some(d) = plan.duration {
+        if t1 > R::of(d) * R::of(1.0 - 1e-12) {
+            t1 = R::of(d);
+        }
+    }
+    t1
+}
+
+/// [`run_with`] in precision `R`.
+fn run_in<R: Real>(b: &Beads, plan: &Plan, rows: &mut dyn Rows, whole: bool) -> ChainOutcome {
     let w = plan.weights;
     let m = plan.substeps();
-    let mut st = State::start(b, w, whole);
+    let c = Consts::<R>::of(b);
+    let mut st = State::start(b, &c, w, whole);
     let mut obs = Watch::new(b);
-    let e_start = b.energy(&st.p, &st.v);
-    let mut e_ref = b.pulse.is_none().then_some(e_start);
+    let mut e_ref = b.pulse.is_none().then(|| energy(b, &st));
     let every = plan.every.map(|e| ((e / plan.h).round() as u64).max(1));
-    let mut t = 0.0;
-    rows.row(0.0, b, &st);
-    obs.see(b, &st, t);
-    let mut end_at = plan.duration;
+    let mut t = R::zero();
+    rows.row(0.0, b, &st.in_f64());
+    obs.see(b, &c, &st, t);
+    let mut end_at = plan.duration.map(R::of);
     let mut status = Status::Ok;
     // At rest every contact counts (the window then holds the moving ones).
-    let mut max_ratio = overlap_ratio(b, &st, 0, b.n);
+    let mut max_ratio = overlap_ratio(&c, &st, 0, b.n);
+    let (max_time, pulse_end) = (R::of(plan.max_time), c.pulse.map(|p| p.duration));
     loop {
         if let Some(end) = end_at {
             if t >= end {
@@ -55,40 +86,27 @@ pub fn run_with(b: &Beads, plan: &Plan, rows: &mut dyn Rows, whole: bool) -> Cha
             status = Status::StepCap;
             break;
         }
-        if plan.duration.is_none() && t >= plan.max_time {
+        if plan.duration.is_none() && t >= max_time {
             status = Status::TimeCap;
             break;
         }
-        // Steps end at k·h exactly; the one nearest a pulse's end lands on
-        // it (the plan put it there, but for rounding: the step after must
-        // start at τ, `step::pulse_on`); the last one lands on the duration.
-        let mut t1 = (st.steps + 1) as f64 * plan.h;
-        if let Some(p) = &b.pulse {
-            if (t1 - p.duration).abs() <= 1e-9 * plan.h {
-                t1 = p.duration;
-            }
-        }
-        if let Some(d) = plan.duration {
-            if t1 > d * (1.0 - 1e-12) {
-                t1 = d;
-            }
-        }
-        step(b, &mut st, t, t1 - t, &m, whole);
+        let t1 = step_end(&c, plan, st.steps + 1);
+        step(&c, &mut st, t, t1 - t, &m, whole);
         t = t1;
-        obs.see(b, &st, t);
-        if e_ref.is_none() && b.pulse.as_ref().is_some_and(|p| t >= p.duration) {
-            e_ref = Some(b.energy(&st.p, &st.v));
+        obs.see(b, &c, &st, t);
+        if e_ref.is_none() && pulse_end.is_some_and(|d| t >= d) {
+            e_ref = Some(energy(b, &st));
         }
         if every.is_some_and(|e| st.steps.is_multiple_of(e)) {
-            rows.row(t, b, &st);
+            rows.row(t.to64(), b, &st.in_f64());
         }
         if end_at.is_none() {
             if let Some((tp, _)) = obs.far.found {
-                end_at = Some(tp * (1.0 + END_MARGIN));
+                end_at = Some(tp * R::of(1.0 + END_MARGIN));
             }
         }
         if st.steps.is_multiple_of(CHECK_EVERY) {
-            max_ratio = max_ratio.max(overlap_ratio(b, &st, st.lo, st.hi));
+            max_ratio = max_ratio.max(overlap_ratio(&c, &st, st.lo, st.hi));
             if !st.v[st.lo..st.hi].iter().all(|v| v.is_finite()) {
                 status = Status::NonFinite;
                 break;
@@ -96,10 +114,16 @@ pub fn run_with(b: &Beads, plan: &Plan, rows: &mut dyn Rows, whole: bool) -> Cha
         }
     }
     if every.is_none_or(|e| !st.steps.is_multiple_of(e)) {
-        rows.row(t, b, &st);
+        rows.row(t.to64(), b, &st.in_f64());
     }
-    max_ratio = max_ratio.max(overlap_ratio(b, &st, st.lo, st.hi));
-    finish(b, plan, st, obs, t, status, e_ref, max_ratio)
+    max_ratio = max_ratio.max(overlap_ratio(&c, &st, st.lo, st.hi));
+    finish(b, plan, &st, obs, t, status, e_ref, max_ratio)
+}
+
+/// [`Beads::energy`] of a state in any precision.
+pub fn energy<R: Real>(b: &Beads, st: &State<R>) -> f64 {
+    let s = st.in_f64();
+    b.energy(&s.p, &s.v)
 }
 
 /// The radius an overlap of contact j is measured against: the smaller of
@@ -113,33 +137,33 @@ pub fn contact_radius(b: &Beads, j: usize) -> f64 {
 }
 
 /// Largest overlap over the smaller radius of its contact, contacts lo ..= hi.
-pub fn overlap_ratio(b: &Beads, st: &State, lo: usize, hi: usize) -> f64 {
-    let n = b.n;
-    let mut m = 0.0f64;
+pub fn overlap_ratio<R: Real>(c: &Consts<R>, st: &State<R>, lo: usize, hi: usize) -> R {
+    let n = c.k.len() - 1;
+    let mut m = R::zero();
     for j in lo..=hi.min(n) {
-        if b.k[j] == 0.0 {
+        if c.k[j] == R::zero() {
             continue;
         }
-        m = m.max((b.d0[j] + st.p[j]) / contact_radius(b, j));
+        m = m.max((c.d0[j] + st.p[j]) / c.r[j]);
     }
     m
 }
 
 /// The observers of one run.
 #[derive(Clone, Debug)]
-pub struct Watch {
+pub struct Watch<R = f64> {
     /// Per probe: its velocity peak and its force peak.
-    pub probes: Vec<(FirstPeak, FirstPeak)>,
-    pub far: FirstPeak,
-    pub walls: [WallWatch; 2],
+    pub probes: Vec<(FirstPeak<R>, FirstPeak<R>)>,
+    pub far: FirstPeak<R>,
+    pub walls: [WallWatch<R>; 2],
     /// FWHM (beads) taken when the last probe's pulse arrives.
     pub width: f64,
-    pub floor_v: f64,
-    pub floor_f: f64,
+    pub floor_v: R,
+    pub floor_f: R,
 }
 
-impl Watch {
-    pub fn new(b: &Beads) -> Watch {
+impl<R: Real> Watch<R> {
+    pub fn new(b: &Beads) -> Watch<R> {
         let vs = b.v_scale();
         let fs = b.mass.iter().cloned().fold(0.0, f64::max) * vs / b.time_scale();
         Watch {
@@ -147,39 +171,41 @@ impl Watch {
             far: FirstPeak::default(),
             walls: Default::default(),
             width: f64::NAN,
-            floor_v: PEAK_FLOOR * vs,
-            floor_f: PEAK_FLOOR * fs,
+            floor_v: R::of(PEAK_FLOOR * vs),
+            floor_f: R::of(PEAK_FLOOR * fs),
         }
     }
 
-    pub fn see(&mut self, b: &Beads, st: &State, t: f64) {
+    pub fn see(&mut self, b: &Beads, c: &Consts<R>, st: &State<R>, t: R) {
         let n = b.n;
         let last = b.probes.len().wrapping_sub(1);
+        let half = R::of(0.5);
         for (k, &i) in b.probes.iter().enumerate() {
             let (vp, fp) = &mut self.probes[k];
             let had = vp.found.is_some();
-            let (fl, dl, sl) = force_rates(b, st, i);
-            let (fr, dr, sr) = force_rates(b, st, i + 1);
-            let (v, a, j) = bead_rates_with(b, st, i, t, dl, dr);
+            let (fl, dl, sl) = force_rates(c, st, i);
+            let (fr, dr, sr) = force_rates(c, st, i + 1);
+            let (v, a, j) = bead_rates_with(c, st, i, t, dl, dr);
             vp.see(t, [v, a, j], self.floor_v);
-            let base = 0.5 * (b.f0[i] + b.f0[i + 1]);
-            let q = [0.5 * (fl + fr) - base, 0.5 * (dl + dr), 0.5 * (sl + sr)];
+            let base = half * (c.f0[i] + c.f0[i + 1]);
+            let q = [half * (fl + fr) - base, half * (dl + dr), half * (sl + sr)];
             fp.see(t, q, self.floor_f);
             if k == last && !had && vp.found.is_some() {
-                self.width = fwhm(&st.v[st.lo..st.hi]);
+                let v: Vec<f64> = st.v[st.lo..st.hi].iter().map(|v| v.to64()).collect();
+                self.width = fwhm(&v);
             }
         }
         for (w, j) in self.walls.iter_mut().zip([0, n]) {
-            if b.k[j] > 0.0 {
-                let (f, d, s) = force_rates(b, st, j);
-                w.see(t, [f, d, s], b.f0[j]);
+            if c.k[j] > R::zero() {
+                let (f, d, s) = force_rates(c, st, j);
+                w.see(t, [f, d, s], c.f0[j]);
             }
         }
         if b.right_wall {
-            let (f, d, s) = force_rates(b, st, n);
-            self.far.see(t, [f - b.f0[n], d, s], self.floor_f);
+            let (f, d, s) = force_rates(c, st, n);
+            self.far.see(t, [f - c.f0[n], d, s], self.floor_f);
         } else {
-            let (v, a, j) = bead_rates(b, st, n - 1, t);
+            let (v, a, j) = bead_rates(c, st, n - 1, t);
             self.far.see(t, [v, a, j], self.floor_v);
         }
     }
@@ -221,29 +247,31 @@ pub fn fwhm(v: &[f64]) -> f64 {
 /// observers, the energy it is measured against and the largest overlap
 /// ratio seen (the last window's is taken here).
 #[allow(clippy::too_many_arguments)]
-pub fn finish(
+pub fn finish<R: Real>(
     b: &Beads,
     plan: &Plan,
-    st: State,
-    obs: Watch,
-    t: f64,
+    st: &State<R>,
+    obs: Watch<R>,
+    t: R,
     mut status: Status,
     e_ref: Option<f64>,
-    max_ratio: f64,
+    max_ratio: R,
 ) -> ChainOutcome {
+    let (t, max_ratio) = (t.to64(), max_ratio.to64());
+    let st = st.in_f64();
     let n = b.n;
     let probes: Vec<ProbeOutcome> = b
         .probes
         .iter()
         .zip(&obs.probes)
         .map(|(&i, (vp, fp))| {
-            let (arrival, peak_velocity) = vp.found.unwrap_or((f64::NAN, f64::NAN));
+            let (arrival, peak_velocity) = vp.found64().unwrap_or((f64::NAN, f64::NAN));
             let base = 0.5 * (b.f0[i] + b.f0[i + 1]);
             ProbeOutcome {
                 bead: i,
                 arrival,
                 peak_velocity,
-                peak_force: fp.found.map_or(f64::NAN, |(_, f)| f + base),
+                peak_force: fp.found64().map_or(f64::NAN, |(_, f)| f + base),
                 v_final: st.v[i],
             }
         })
@@ -299,10 +327,10 @@ pub fn finish(
     }
     let fragments = 1 + (1..n).filter(|&j| b.d0[j] + st.p[j] < 0.0).count();
     let [lw, rw] = obs.walls;
-    let wall = |w: WallWatch, on: bool| {
+    let wall = |w: WallWatch<R>, on: bool| {
         on.then_some(WallOutcome {
-            peak_force: w.peak,
-            impulse: w.impulse,
+            peak_force: w.peak.to64(),
+            impulse: w.impulse.to64(),
         })
     };
     ChainOutcome {
@@ -319,7 +347,7 @@ pub fn finish(
         energy_error,
         momentum_error,
         max_overlap_ratio: max_ratio,
-        v: st.v,
+        v: st.v.clone(),
         t_end: t,
         steps: st.steps,
         dt: plan.h,

@@ -14,57 +14,37 @@
 //! overlap and feel nothing: the window ends a few beads ahead of the front,
 //! where δ^{3/2} of the precursor underflows to zero.
 
-use super::{hertz, Beads};
+use super::{hertz, Beads, Consts};
+use crate::engine::real::Real;
 
 /// Beads beyond the s + 1 a step can reach, kept in the window for safety.
 pub const MARGIN_EXTRA: usize = 1;
 
-/// A chain's state between steps.
+/// A chain's state between steps, in the precision `R` of its run.
 #[derive(Clone, Debug, PartialEq)]
-pub struct State {
+pub struct State<R = f64> {
     /// Steps taken.
     pub steps: u64,
     /// Change of each contact's overlap from rest (m), contacts 0 ..= n.
-    pub p: Vec<f64>,
+    pub p: Vec<R>,
     /// Bead velocities (m/s).
-    pub v: Vec<f64>,
+    pub v: Vec<R>,
     /// Bead accelerations at this state (m/s²).
-    pub a: Vec<f64>,
+    pub a: Vec<R>,
     /// Excess force of each contact at this state (N): k·δ^{3/2} − f0.
-    pub e: Vec<f64>,
+    pub e: Vec<R>,
     /// Displacement of bead 0 from rest (m): the others follow from `p`.
-    pub x0: f64,
+    pub x0: R,
     /// The window: beads lo .. hi (contacts lo ..= hi).
     pub lo: usize,
     pub hi: usize,
     /// Scratch: `p` of contacts lo ..= hi at the start of the step being
     /// taken (for the kink correction, [`Substeps::kicks`]); nothing between
     /// steps.
-    pub p_start: Vec<f64>,
+    pub p_start: Vec<R>,
 }
 
-impl State {
-    /// The chain at rest (or with its initial velocities), forces evaluated.
-    pub fn start(b: &Beads, weights: &[f64], whole: bool) -> State {
-        let n = b.n;
-        let mut s = State {
-            steps: 0,
-            p: vec![0.0; n + 1],
-            v: b.v0.clone(),
-            a: vec![0.0; n],
-            e: vec![0.0; n + 1],
-            x0: 0.0,
-            lo: 0,
-            hi: n,
-            p_start: vec![0.0; n + 1],
-        };
-        forces(b, &mut s, 0.0, pulse_on(b, 0.0));
-        if !whole {
-            s.shrink(b, weights.len(), 0.0);
-        }
-        s
-    }
-
+impl State<f64> {
     /// Displacement of every bead from rest (m): x_i = x_{i−1} − p_i.
     pub fn positions(&self) -> Vec<f64> {
         let mut x = Vec::with_capacity(self.v.len());
@@ -81,12 +61,58 @@ impl State {
     pub fn force(&self, b: &Beads, j: usize) -> f64 {
         self.e[j] + b.f0[j]
     }
+}
+
+impl<R: Real> State<R> {
+    /// The chain at rest (or with its initial velocities), forces evaluated.
+    pub fn start(b: &Beads, c: &Consts<R>, weights: &[f64], whole: bool) -> State<R> {
+        let n = b.n;
+        let zero = R::zero();
+        let mut s = State {
+            steps: 0,
+            p: vec![zero; n + 1],
+            v: b.v0.iter().map(|&v| R::of(v)).collect(),
+            a: vec![zero; n],
+            e: vec![zero; n + 1],
+            x0: zero,
+            lo: 0,
+            hi: n,
+            p_start: vec![zero; n + 1],
+        };
+        forces(c, &mut s, zero, pulse_on(c, zero));
+        if !whole {
+            s.shrink(c, weights.len(), zero);
+        }
+        s
+    }
+
+    /// The state in f64 (what traces, histories and the outcome read): the
+    /// state itself when `R` is f64, else a converted copy.
+    pub fn in_f64(&self) -> std::borrow::Cow<'_, State<f64>> {
+        use std::borrow::Cow;
+        if let Some(s) = (self as &dyn std::any::Any).downcast_ref::<State<f64>>() {
+            return Cow::Borrowed(s);
+        }
+        let conv = |x: &[R]| x.iter().map(|x| x.to64()).collect::<Vec<f64>>();
+        Cow::Owned(State {
+            steps: self.steps,
+            p: conv(&self.p),
+            v: conv(&self.v),
+            a: conv(&self.a),
+            e: conv(&self.e),
+            x0: self.x0.to64(),
+            lo: self.lo,
+            hi: self.hi,
+            p_start: Vec::new(),
+        })
+    }
 
     /// Re-fit the window around the moving beads (`t`: the time now).
-    fn shrink(&mut self, b: &Beads, stages: usize, t: f64) {
+    fn shrink(&mut self, c: &Consts<R>, stages: usize, t: R) {
         // The pulse's bead stays in while the next step (from t) feels it.
-        let pulse = b.pulse.as_ref().filter(|_| pulse_on(b, t)).map(|p| p.bead);
-        let moving = |i: usize| self.v[i] != 0.0 || self.a[i] != 0.0 || Some(i) == pulse;
+        let pulse = c.pulse.as_ref().filter(|_| pulse_on(c, t)).map(|p| p.bead);
+        let zero = R::zero();
+        let moving = |i: usize| self.v[i] != zero || self.a[i] != zero || Some(i) == pulse;
         let first = (self.lo..self.hi).find(|&i| moving(i));
         let Some(first) = first else {
             (self.lo, self.hi) = (0, 0);
@@ -110,30 +136,30 @@ impl State {
 /// every step then integrates a smooth force, and the methods keep their
 /// order; a step across τ would see the force's kink.
 #[inline(always)]
-pub fn pulse_on(b: &Beads, t0: f64) -> bool {
-    b.pulse.as_ref().is_some_and(|p| t0 < p.duration)
+pub fn pulse_on<R: Real>(c: &Consts<R>, t0: R) -> bool {
+    c.pulse.as_ref().is_some_and(|p| t0 < p.duration)
 }
 
 /// Excess forces of contacts lo ..= hi and accelerations of beads lo .. hi
 /// at time `t` (the pulse's phase; `on`: [`pulse_on`] of the step).
 #[inline(always)]
-fn forces(b: &Beads, s: &mut State, t: f64, on: bool) {
+fn forces<R: Real>(c: &Consts<R>, s: &mut State<R>, t: R, on: bool) {
     let (lo, hi) = (s.lo, s.hi);
     let e = &mut s.e[lo..=hi];
-    let (k, d0, f0, p) = (&b.k[lo..=hi], &b.d0[lo..=hi], &b.f0[lo..=hi], &s.p[lo..=hi]);
+    let (k, d0, f0, p) = (&c.k[lo..=hi], &c.d0[lo..=hi], &c.f0[lo..=hi], &s.p[lo..=hi]);
     for j in 0..e.len() {
         e[j] = hertz(k[j], d0[j] + p[j]) - f0[j];
     }
     let a = &mut s.a[lo..hi];
-    let im = &b.inv_mass[lo..hi];
+    let im = &c.inv_mass[lo..hi];
     let e = &s.e[lo..=hi];
     for i in 0..a.len() {
         a[i] = (e[i] - e[i + 1]) * im[i];
     }
-    if let Some(pl) = &b.pulse {
+    if let Some(pl) = &c.pulse {
         if on && (lo..hi).contains(&pl.bead) {
-            let f = pl.force * pulse_sin(t, pl.omega());
-            s.a[pl.bead] += f * b.inv_mass[pl.bead];
+            let f = pl.force * pulse_sin(t, pl.omega);
+            s.a[pl.bead] = s.a[pl.bead] + f * pl.inv_mass;
         }
     }
 }
@@ -159,43 +185,44 @@ pub const SINE_FACTORS: [f64; 10] = {
 /// pendulum_sin's division by a constant is not exact there either); error
 /// < 1e-17 on [−π/2, π/2].
 #[inline(always)]
-pub fn half_sine(x: f64) -> f64 {
-    let x = if x > std::f64::consts::FRAC_PI_2 {
-        std::f64::consts::PI - x
+pub fn half_sine<R: Real>(x: R) -> R {
+    let x = if x > R::of(std::f64::consts::FRAC_PI_2) {
+        R::of(std::f64::consts::PI) - x
     } else {
         x
     };
     let x2 = x * x;
-    let mut p = 1.0;
+    let one = R::one();
+    let mut p = one;
     for f in SINE_FACTORS {
-        p = 1.0 - f * x2 * p;
+        p = one - R::of(f) * x2 * p;
     }
     x * p
 }
 
 /// sin(ωt) of a half-sine pulse, ω = π/τ (t within a step of [0, τ]).
 #[inline(always)]
-pub fn pulse_sin(t: f64, omega: f64) -> f64 {
+pub fn pulse_sin<R: Real>(t: R, omega: R) -> R {
     half_sine(omega * t)
 }
 
 /// cos(ωt) = sin(π/2 − ωt) of a half-sine pulse (0 ≤ t < τ).
 #[inline(always)]
-pub fn pulse_cos(t: f64, omega: f64) -> f64 {
-    half_sine(std::f64::consts::FRAC_PI_2 - omega * t)
+pub fn pulse_cos<R: Real>(t: R, omega: R) -> R {
+    half_sine(R::of(std::f64::consts::FRAC_PI_2) - omega * t)
 }
 
 #[inline(always)]
-fn kick(s: &mut State, c: f64) {
+fn kick<R: Real>(s: &mut State<R>, c: R) {
     let (lo, hi) = (s.lo, s.hi);
-    for (v, a) in s.v[lo..hi].iter_mut().zip(&s.a[lo..hi]) {
-        *v += c * a;
+    for (v, &a) in s.v[lo..hi].iter_mut().zip(&s.a[lo..hi]) {
+        *v = *v + c * a;
     }
 }
 
 /// p_j += dt·(v_{j−1} − v_j) for contacts lo ..= hi (walls do not move).
 #[inline(always)]
-fn drift(s: &mut State, dt: f64) {
+fn drift<R: Real>(s: &mut State<R>, dt: R) {
     let n = s.v.len();
     let (lo, hi) = (s.lo, s.hi);
     if lo == hi {
@@ -205,15 +232,15 @@ fn drift(s: &mut State, dt: f64) {
     if a <= z {
         let (p, v) = (&mut s.p[a..=z], &s.v[a - 1..=z]);
         for j in 0..p.len() {
-            p[j] += dt * (v[j] - v[j + 1]);
+            p[j] = p[j] + dt * (v[j] - v[j + 1]);
         }
     }
     if lo == 0 {
-        s.p[0] -= dt * s.v[0];
-        s.x0 += dt * s.v[0];
+        s.p[0] = s.p[0] - dt * s.v[0];
+        s.x0 = s.x0 + dt * s.v[0];
     }
     if hi == n {
-        s.p[n] += dt * s.v[n - 1];
+        s.p[n] = s.p[n] + dt * s.v[n - 1];
     }
 }
 
@@ -224,21 +251,28 @@ fn drift(s: &mut State, dt: f64) {
 /// (chosen at run time): the force loop's square roots are most of a
 /// step's cost. The results are the same bits (IEEE square roots are
 /// correctly rounded at any width, and no multiply-add is fused).
-pub fn step(b: &Beads, s: &mut State, t0: f64, h: f64, m: &Substeps, whole: bool) {
+pub fn step<R: Real>(c: &Consts<R>, s: &mut State<R>, t0: R, h: R, m: &Substeps, whole: bool) {
     #[cfg(target_arch = "x86_64")]
     {
         if std::is_x86_feature_detected!("avx2") {
             // SAFETY: the CPU has AVX2 (checked just above).
-            return unsafe { step_avx2(b, s, t0, h, m, whole) };
+            return unsafe { step_avx2(c, s, t0, h, m, whole) };
         }
     }
-    step_portable(b, s, t0, h, m, whole)
+    step_portable(c, s, t0, h, m, whole)
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-unsafe fn step_avx2(b: &Beads, s: &mut State, t0: f64, h: f64, m: &Substeps, whole: bool) {
-    step_portable(b, s, t0, h, m, whole)
+unsafe fn step_avx2<R: Real>(
+    c: &Consts<R>,
+    s: &mut State<R>,
+    t0: R,
+    h: R,
+    m: &Substeps,
+    whole: bool,
+) {
+    step_portable(c, s, t0, h, m, whole)
 }
 
 /// A step's substeps: the composition's drift weights, and the kick
@@ -260,20 +294,21 @@ pub struct Substeps<'a> {
 /// contact's share, then its right one's), as the GPU kernel's invocations
 /// do it.
 #[inline(always)]
-fn kinks(b: &Beads, s: &mut State, h: f64, w: &[f64], kicks: &[f64]) {
+fn kinks<R: Real>(c: &Consts<R>, s: &mut State<R>, h: R, w: &[f64], kicks: &[f64]) {
     // Whether a contact at rest overlap `d0` with stiffness `k` crossed zero
     // going from `p_start` to `p` (no branch: the scan below vectorises).
     #[inline(always)]
-    fn crosses(d0: f64, k: f64, p_start: f64, p: f64) -> bool {
-        ((d0 + p_start > 0.0) != (d0 + p > 0.0)) & (k != 0.0)
+    fn crosses<R: Real>(d0: R, k: R, p_start: R, p: R) -> bool {
+        let zero = R::zero();
+        ((d0 + p_start > zero) != (d0 + p > zero)) & (k != zero)
     }
     let (lo, hi) = (s.lo, s.hi);
     let crossed = |j: usize| {
-        crosses(b.d0[j], b.k[j], s.p_start[j], s.p[j])
-            .then_some((b.d0[j] + s.p_start[j], b.d0[j] + s.p[j]))
+        crosses(c.d0[j], c.k[j], s.p_start[j], s.p[j])
+            .then_some((c.d0[j] + s.p_start[j], c.d0[j] + s.p[j]))
     };
     // Most steps have none: one branch-free pass over the window finds out.
-    let (d0, k) = (&b.d0[lo..=hi], &b.k[lo..=hi]);
+    let (d0, k) = (&c.d0[lo..=hi], &c.k[lo..=hi]);
     let (ps, p) = (&s.p_start[lo..=hi], &s.p[lo..=hi]);
     let mut any = false;
     for j in 0..d0.len() {
@@ -282,45 +317,47 @@ fn kinks(b: &Beads, s: &mut State, h: f64, w: &[f64], kicks: &[f64]) {
     if !any {
         return;
     }
-    let miss = |j: usize, (d0, d1): (f64, f64)| {
-        crate::engine::integrate::kink_impulse_error(b.k[j], d0, d1, w, kicks) * h
+    let miss = |j: usize, (d0, d1): (R, R)| {
+        crate::engine::integrate::kink_impulse_error(c.k[j], d0, d1, w, kicks) * h
     };
     for i in lo..hi {
         let (left, right) = (crossed(i), crossed(i + 1));
         if let Some(d) = left {
-            s.v[i] += miss(i, d) * b.inv_mass[i];
+            s.v[i] = s.v[i] + miss(i, d) * c.inv_mass[i];
         }
         if let Some(d) = right {
-            s.v[i] -= miss(i + 1, d) * b.inv_mass[i];
+            s.v[i] = s.v[i] - miss(i + 1, d) * c.inv_mass[i];
         }
     }
 }
 
 #[inline(always)]
-fn step_portable(b: &Beads, s: &mut State, t0: f64, h: f64, m: &Substeps, whole: bool) {
+fn step_portable<R: Real>(c: &Consts<R>, s: &mut State<R>, t0: R, h: R, m: &Substeps, whole: bool) {
     let w = m.weights;
+    let half = R::of(0.5);
     let mut t = t0;
-    let on = pulse_on(b, t0);
+    let on = pulse_on(c, t0);
     if m.kicks.is_some() {
         let (lo, hi) = (s.lo, s.hi);
         s.p_start[lo..=hi].copy_from_slice(&s.p[lo..=hi]);
     }
-    kick(s, 0.5 * w[0] * h);
+    kick(s, half * R::of(w[0]) * h);
     for (j, &wj) in w.iter().enumerate() {
+        let wj = R::of(wj);
         drift(s, wj * h);
-        t += wj * h;
-        forces(b, s, t, on);
-        let c = match w.get(j + 1) {
-            Some(next) => 0.5 * (wj + next) * h,
-            None => 0.5 * wj * h,
+        t = t + wj * h;
+        forces(c, s, t, on);
+        let k = match w.get(j + 1) {
+            Some(&next) => half * (wj + R::of(next)) * h,
+            None => half * wj * h,
         };
-        kick(s, c);
+        kick(s, k);
     }
     if let Some(kicks) = m.kicks {
-        kinks(b, s, h, w, kicks);
+        kinks(c, s, h, w, kicks);
     }
     s.steps += 1;
     if !whole {
-        s.shrink(b, w.len(), t0 + h);
+        s.shrink(c, w.len(), t0 + h);
     }
 }
