@@ -9,7 +9,9 @@
 # precompressed 10^4-bead chains driven by a pulse (few, long chains), 2,048
 # struck 100-bead dimer chains. For each GPU run it also prints the line
 # naming the adapter and the sidecar's dispatch statistics (stages_s.gpu:
-# dispatches, rounds, share of the wall time with work in flight).
+# dispatches, rounds, share of the wall time with work in flight). Last, the
+# struck workload in df64 on the GPU (pairs of f32: for GPUs whose f64 is
+# slow), against the CPU's f64 time and outcomes.
 cd "$(dirname "$0")"
 for f in ../.gl/*.deb; do dpkg -x "$f" /; done 2>/dev/null; ldconfig 2>/dev/null
 export XDG_RUNTIME_DIR=/tmp
@@ -94,3 +96,31 @@ print(f"{name:7} gpu {float(tg):8.2f} s  cpu {float(tc):8.2f} s  speed-up {float
       f"rows {len(rg)-1}  max rel diff {worst:.2e} ({col or 'bit-identical'})")
 PY
 done
+
+# df64 on the GPU: the struck chains again, against the CPU's f64 run above.
+t0=$(date +%s.%N)
+if ./cradle sweep $w/struck.toml --out $w/struck-df64.csv --backend gpu --precision df64 \
+    >$w/struck-df64.log 2>&1; then
+  t_df=$(python3 -c "print($(date +%s.%N)-$t0)")
+  tail -1 $w/struck-df64.log
+  python3 - $w/struck-df64.csv $w/struck-cpu.csv "$t_df" <<'PY'
+import csv, sys, math
+g, c, tg = sys.argv[1:4]
+rg, rc = list(csv.reader(open(g))), list(csv.reader(open(c)))
+worst, col = 0.0, ""
+for a, b in zip(rg[1:], rc[1:]):
+    for h, x, y in zip(rg[0], a, b):
+        try:
+            x, y = float(x), float(y)
+        except ValueError:
+            continue
+        if h in ("arrival_250", "arrival_750", "peak_v_250", "peak_v_750", "pulse_speed") \
+                and math.isfinite(x) and math.isfinite(y):
+            d = abs(x - y) / max(abs(x), abs(y), 1e-300)
+            if d > worst:
+                worst, col = d, h
+print(f"struck df64 gpu {float(tg):8.2f} s  max rel diff of the wave's outcomes from the CPU's f64 {worst:.2e} ({col})")
+PY
+else
+  echo "struck df64 gpu FAILED: $(tail -2 $w/struck-df64.log)"
+fi
