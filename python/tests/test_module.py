@@ -162,6 +162,13 @@ def test_a_granular_chain_runs_as_cradle_run_does(tmp_path):
     # (the step divides the trace's spacing: the same run to the tolerance)
     assert out["status"] == "ok" and abs(out["arrival_80"] / got["arrival_80"] - 1) < 1e-6
     assert trace.column_names[:4] == ["t", "x_0", "x_10", "x_20"] and "f_wall_right" in trace.column_names
+    # In df64 (pairs of f32) the chain gives the same wave to ~1e-12; f32 is refused.
+    pair = hc.run(str(scene), precision="df64")
+    assert pair["status"] == "ok" and pair["steps"] == got["steps"]
+    for k in ("arrival_20", "arrival_80", "peak_v_80", "wall_right_peak_force"):
+        assert abs(pair[k] / got[k] - 1) < 1e-9, k
+    with pytest.raises(ValueError, match="f64 or df64"):
+        hc.run(str(scene), precision="f32")
 
 
 def test_ctrl_c_stops_a_sweep_and_resume_finishes_it(tmp_path):

@@ -16,6 +16,11 @@
 //! expression. A chain at rest has p = 0, δ_j = δ0_j bit for bit, e = 0:
 //! it stays at rest exactly, whatever the stiffnesses (no absolute
 //! positions of 10^4 beads, whose differences would not cancel).
+//!
+//! **Precision.** A run computes in the plan's precision (`Plan::precision`:
+//! f64, or [`crate::engine::real::Df64`] pairs of f32 for GPUs without fast
+//! f64): the state ([`step::State`]), the constants ([`Consts`]), the step
+//! and the observers are generic over [`Real`]; the outcome is f64.
 
 pub mod history;
 pub mod observe;
