@@ -465,6 +465,9 @@ impl Gpu {
     /// The chain pipeline of `precision` (f64 or df64), compiled on first
     /// use and kept.
     pub(super) fn chain_pipe(&self, precision: Precision) -> Result<Arc<ChainPipe>> {
+        if precision == Precision::F32 {
+            bail!("the granular-chain kernel runs f64 or df64, not f32 (refused at the front ends: granular::check_solver)");
+        }
         let mut slots = self.chain_pipe.lock().unwrap_or_else(|e| e.into_inner());
         let slot = &mut slots[usize::from(precision == Precision::Df64)];
         if let Some(p) = slot.as_ref() {
@@ -521,20 +524,21 @@ impl Gpu {
     /// storage binding allow.
     pub fn run_chain_jobs(&self, jobs: &[&ChainJob]) -> Result<Vec<ChainOutcome>> {
         let mut out: Vec<Option<ChainOutcome>> = vec![None; jobs.len()];
-        for df64 in [false, true] {
+        for precision in [Precision::F64, Precision::Df64, Precision::F32] {
             let (at, these): (Vec<usize>, Vec<&ChainJob>) = jobs
                 .iter()
                 .enumerate()
-                .filter(|(_, j)| (j.plan.precision == Precision::Df64) == df64)
+                .filter(|(_, j)| j.plan.precision == precision)
                 .map(|(i, j)| (i, *j))
                 .unzip();
             if these.is_empty() {
                 continue;
             }
-            let done = if df64 {
-                self.run_chain_jobs_in::<Df64>(&these)?
-            } else {
-                self.run_chain_jobs_in::<f64>(&these)?
+            let done = match precision {
+                Precision::F64 => self.run_chain_jobs_in::<f64>(&these)?,
+                Precision::Df64 => self.run_chain_jobs_in::<Df64>(&these)?,
+                // Refused there (chain_pipe), never run in another precision.
+                Precision::F32 => self.run_chain_jobs_in::<f32>(&these)?,
             };
             for (i, o) in at.into_iter().zip(done) {
                 out[i] = Some(o);

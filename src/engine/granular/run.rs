@@ -33,10 +33,12 @@ pub fn run(beads: &Beads, plan: &Plan, rows: &mut dyn Rows) -> ChainOutcome {
 
 /// [`run`], the window the whole chain when `whole` (for tests).
 pub fn run_with(b: &Beads, plan: &Plan, rows: &mut dyn Rows, whole: bool) -> ChainOutcome {
+    // The front ends refuse f32 (`check_solver`); a plan that asks for it
+    // anyway gets it, never another precision in its place.
     match plan.precision {
+        Precision::F64 => run_in::<f64>(b, plan, rows, whole),
         Precision::Df64 => run_in::<Df64>(b, plan, rows, whole),
-        // f32 is refused before a plan is made (`check_solver`).
-        Precision::F64 | Precision::F32 => run_in::<f64>(b, plan, rows, whole),
+        Precision::F32 => run_in::<f32>(b, plan, rows, whole),
     }
 }
 
