@@ -1022,7 +1022,8 @@ fn gpu_profiles_parse_with_clear_errors() {
 /// and its push on the bead), a dimer pattern, a taper, an impurity, a
 /// stop time and the default end at the far peak, chains shorter and
 /// longer than a workgroup (64 invocations striding over 200 beads), an
-/// invalid chain passed through, and the caps (a step cap mid-run).
+/// invalid chain passed through, the caps (a step cap mid-run), and a part
+/// of 10^4-bead chains whose reals go up and come back in several groups.
 #[test]
 fn gpu_chain_kernel_gives_the_cpus_chain_outcomes() {
     use hertz_cradle::backend::ChainJob;
@@ -1062,6 +1063,18 @@ fn gpu_chain_kernel_gives_the_cpus_chain_outcomes() {
         let mut j = jobs[k].clone().unwrap();
         j.plan.precision = Precision::Df64;
         jobs.push(Some(j));
+    }
+    // 24 precompressed chains of 10^4 beads (a short pulse run): ~25 MB of
+    // reals, more than one transfer group (`TRANSFER_BYTES`, 16 MB) up and
+    // back, the small chains before them in the first.
+    let long = "balls = 10000\nradius = 0.005\n[walls]\nleft = true\nright = true\nprecompression = 10.0\n[pulse]\nbead = 0\nforce = 0.1\nduration = 1e-5\n[probes]\nbeads = [2500, 7500]\n[stop]\nduration = 2e-5\n";
+    for k in 0..24 {
+        let text = long.replace("10.0", &format!("{}", 1.0 + k as f64));
+        let s = Scene::from_toml_str("chain", &text).unwrap();
+        let solver = Solver::resolve(&s, &Overrides::default()).unwrap();
+        let beads = Beads::from_scene(&s);
+        let plan = granular::plan(&beads, &solver, None);
+        jobs.push(Some(ChainJob { beads, plan }));
     }
     let source = |k: usize| Ok(jobs[k].clone());
     let cpu = Cpu.run_chains(jobs.len(), &source).unwrap();

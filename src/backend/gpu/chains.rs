@@ -36,6 +36,9 @@ const PROBE_REALS: usize = 2 * FIRST_PEAK_REALS;
 /// Loop iterations per dispatch and workgroup on a software adapter
 /// (`profile::LOOP_CAP`'s margin: llvmpipe cuts loops short past ~2^16).
 const SOFTWARE_LOOPS: usize = 12_000;
+/// Most bytes of chain reals staged on the host at once, going up or
+/// coming back (a larger chain is staged alone).
+const TRANSFER_BYTES: u64 = 16 << 20;
 /// Steps per dispatch on a hardware GPU: the first, and the bounds the
 /// round time keeps it in.
 const FIRST_STEPS: u32 = 256;
@@ -283,15 +286,24 @@ impl Offsets {
     }
 }
 
+/// A part of chains on the device, as [`Gpu::upload_chains`] left it.
+struct Part {
+    heads: Vec<ChainHead>,
+    /// Each chain's energy at the start.
+    e_start: Vec<f64>,
+    probes: Vec<u32>,
+    /// Every chain's reals, one after the other.
+    reals: wgpu::Buffer,
+    /// Reals per chain.
+    lens: Vec<usize>,
+    /// The groups of chains the reals go up and come back in.
+    transfers: Vec<std::ops::Range<usize>>,
+}
+
 /// Pack one chain at reals offset `base` (its header, its reals, its
 /// probes), in the precision `R` of its plan; also returns the energy at
 /// the start, which a run without a pulse is measured against.
-fn pack<R: Real>(
-    job: &ChainJob,
-    base: usize,
-    probe_at: usize,
-    reals: &mut Vec<R>,
-) -> (ChainHead, f64) {
+fn pack<R: Real>(job: &ChainJob, base: usize, probe_at: usize) -> (ChainHead, f64, Vec<R>) {
     let (b, plan): (&Beads, &Plan) = (&job.beads, &job.plan);
     let n = b.n;
     let w = plan.weights;
@@ -386,17 +398,17 @@ fn pack<R: Real>(
         o_ps: u(o.ps),
         ..Default::default()
     };
-    reals.extend_from_slice(&r);
-    (head, run::energy(b, &st))
+    (head, run::energy(b, &st), r)
 }
 
 /// The outcome of a chain from its header and reals read back.
+/// `reals`: the chain's own, from its first (at `h.sc` on the device).
 fn finish<R: Real>(job: &ChainJob, h: &ChainHead, reals: &[R], e_start: f64) -> ChainOutcome {
     let (b, plan) = (&job.beads, &job.plan);
     let n = b.n;
-    let base = h.sc as usize;
+    let rel = |o: u32| o as usize - h.sc as usize;
     let at = |o: u32, len: usize| {
-        let o = o as usize;
+        let o = rel(o);
         reals[o..o + len].to_vec()
     };
     let to64 = |x: Vec<R>| x.into_iter().map(|x| x.to64()).collect::<Vec<f64>>();
@@ -412,7 +424,7 @@ fn finish<R: Real>(job: &ChainJob, h: &ChainHead, reals: &[R], e_start: f64) -> 
         p_start: Vec::new(),
     };
     let mut watch = Watch::<R>::new(b);
-    let mut o = h.o_watch as usize;
+    let mut o = rel(h.o_watch);
     for probe in watch.probes.iter_mut() {
         *probe = (
             FirstPeak::unpack(&reals[o..]),
@@ -443,9 +455,9 @@ fn finish<R: Real>(job: &ChainJob, h: &ChainHead, reals: &[R], e_start: f64) -> 
         ST_NON_FINITE => Status::NonFinite,
         _ => Status::Ok,
     };
-    let t = reals[base + 7];
+    let t = reals[7];
     let c = Consts::<R>::of(b);
-    let max_ratio = reals[base + 9].max(overlap_ratio(&c, &st, st.lo, st.hi));
+    let max_ratio = reals[9].max(overlap_ratio(&c, &st, st.lo, st.hi));
     run::finish(b, plan, &st, watch, t, status, e_ref, max_ratio)
 }
 
@@ -578,42 +590,109 @@ impl Gpu {
         pipe: &ChainPipe,
         jobs: &[&ChainJob],
     ) -> Result<Vec<ChainOutcome>> {
-        let mut heads = Vec::with_capacity(jobs.len());
-        let mut e_start = Vec::with_capacity(jobs.len());
-        let mut reals = Vec::new();
-        let mut probes: Vec<u32> = Vec::new();
-        for j in jobs {
-            if j.plan.weights.len() > MAX_STAGES {
-                bail!(
-                    "a method of {} substeps (the chain kernel takes {MAX_STAGES})",
-                    j.plan.weights.len()
-                );
+        if let Some(j) = jobs.iter().find(|j| j.plan.weights.len() > MAX_STAGES) {
+            bail!(
+                "a method of {} substeps (the chain kernel takes {MAX_STAGES})",
+                j.plan.weights.len()
+            );
+        }
+        let part = self.upload_chains::<R>(jobs)?;
+        let heads = self.run_chains_to_end(pipe, jobs, &part)?;
+        self.read_chains::<R>(jobs, &part, &heads)
+    }
+
+    /// The part's chains packed into a device buffer. The reals go up in
+    /// groups of chains of at most [`TRANSFER_BYTES`] (one chain if it is
+    /// larger), each packed straight into its staging buffer's mapping: the
+    /// host holds one group, not the part (which may be 10^6 beads, ~120 MB).
+    fn upload_chains<R: Real>(&self, jobs: &[&ChainJob]) -> Result<Part> {
+        let d = &self.device;
+        let size = std::mem::size_of::<R>();
+        let lens: Vec<usize> = jobs
+            .iter()
+            .map(|j| Offsets::of(j.beads.n, j.plan.weights.len(), j.beads.probes.len()).len)
+            .collect();
+        let transfers = super::parts(jobs.len(), usize::MAX, TRANSFER_BYTES, |k| {
+            (lens[k] * size) as u64
+        });
+        let reals = d.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("chain reals"),
+            size: (lens.iter().sum::<usize>() * size) as u64,
+            usage: wgpu::BufferUsages::STORAGE
+                | wgpu::BufferUsages::COPY_SRC
+                | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let (mut heads, mut e_start, mut probes) = (vec![], vec![], vec![]);
+        let mut base = 0;
+        for g in &transfers {
+            let len: usize = lens[g.clone()].iter().sum();
+            let up = d.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("chain reals upload"),
+                size: (len * size) as u64,
+                usage: wgpu::BufferUsages::MAP_WRITE | wgpu::BufferUsages::COPY_SRC,
+                mapped_at_creation: true,
+            });
+            {
+                let mut mapped = up
+                    .slice(..)
+                    .get_mapped_range_mut()
+                    .map_err(|e| anyhow!("GPU upload failed: {e}"))?;
+                let mut at = 0;
+                for j in &jobs[g.clone()] {
+                    let (h, s, r) = pack::<R>(j, base + at, probes.len());
+                    mapped
+                        .slice(at * size..(at + r.len()) * size)
+                        .copy_from_slice(bytemuck::cast_slice(&r));
+                    at += r.len();
+                    probes.extend(j.beads.probes.iter().map(|&i| i as u32));
+                    heads.push(h);
+                    e_start.push(s);
+                }
             }
-            let (h, s) = pack::<R>(j, reals.len(), probes.len(), &mut reals);
-            probes.extend(j.beads.probes.iter().map(|&i| i as u32));
-            heads.push(h);
-            e_start.push(s);
+            up.unmap();
+            let mut enc = d.create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("chain reals upload"),
+            });
+            enc.copy_buffer_to_buffer(&up, 0, &reals, (base * size) as u64, (len * size) as u64);
+            let index = self.queue.submit(Some(enc.finish()));
+            // Wait, so that this group's staging is freed before the next.
+            d.poll(wgpu::PollType::Wait {
+                submission_index: Some(index),
+                timeout: None,
+            })
+            .map_err(|e| anyhow!("GPU poll failed: {e}"))?;
+            base += len;
         }
         if probes.is_empty() {
             probes.push(0);
         }
+        Ok(Part {
+            heads,
+            e_start,
+            probes,
+            reals,
+            lens,
+            transfers,
+        })
+    }
+
+    /// Dispatch rounds until every chain of the part is done; the headers
+    /// as they ended (on the device, readable).
+    fn run_chains_to_end(
+        &self,
+        pipe: &ChainPipe,
+        jobs: &[&ChainJob],
+        part: &Part,
+    ) -> Result<wgpu::Buffer> {
         let d = &self.device;
         let storage = wgpu::BufferUsages::STORAGE;
         let readable = storage | wgpu::BufferUsages::COPY_SRC;
-        let staging = wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST;
         let init = |label, contents: &[u8], usage| {
             d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
                 label: Some(label),
                 contents,
                 usage,
-            })
-        };
-        let read_buffer = |label, size| {
-            d.create_buffer(&wgpu::BufferDescriptor {
-                label: Some(label),
-                size,
-                usage: staging,
-                mapped_at_creation: false,
             })
         };
         let software = self.info.device_type == wgpu::DeviceType::Cpu;
@@ -623,16 +702,14 @@ impl Gpu {
         } else {
             FIRST_STEPS
         };
-        let hbuf = init("chain heads", bytemuck::cast_slice(&heads), readable);
-        let rbuf = init("chain reals", bytemuck::cast_slice(&reals), readable);
-        drop(reals);
+        let hbuf = init("chain heads", bytemuck::cast_slice(&part.heads), readable);
         let ctl0 = Ctl { budget, done: 0 };
         let cbuf = init(
             "chain ctl",
             bytemuck::bytes_of(&ctl0),
             readable | wgpu::BufferUsages::COPY_DST,
         );
-        let pbuf = init("chain probes", bytemuck::cast_slice(&probes), storage);
+        let pbuf = init("chain probes", bytemuck::cast_slice(&part.probes), storage);
         fn entry(binding: u32, b: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
             wgpu::BindGroupEntry {
                 binding,
@@ -644,12 +721,12 @@ impl Gpu {
             layout: &pipe.layout,
             entries: &[
                 entry(0, &hbuf),
-                entry(1, &rbuf),
+                entry(1, &part.reals),
                 entry(2, &cbuf),
                 entry(3, &pbuf),
             ],
         });
-        let cread = read_buffer("chain ctl read", cbuf.size());
+        let cread = self.read_buffer("chain ctl read", cbuf.size());
         let groups = jobs.len() as u32;
         let mut written = budget;
         loop {
@@ -678,7 +755,7 @@ impl Gpu {
             let ctl: Ctl = self.mapped(&cread, index, rx)?[0];
             self.stats.completed();
             if ctl.done >= groups {
-                break;
+                return Ok(hbuf);
             }
             if !software {
                 let s = began.elapsed().as_secs_f64();
@@ -689,30 +766,74 @@ impl Gpu {
                 }
             }
         }
-        let hread = read_buffer("chain heads read", hbuf.size());
-        let rread = read_buffer("chain reals read", rbuf.size());
-        let mut enc = d.create_command_encoder(&wgpu::CommandEncoderDescriptor {
-            label: Some("chains read back"),
-        });
-        enc.copy_buffer_to_buffer(&hbuf, 0, &hread, 0, hbuf.size());
-        enc.copy_buffer_to_buffer(&rbuf, 0, &rread, 0, rbuf.size());
+    }
+
+    /// `len` bytes of `src` from `offset`, copied to a staging buffer and
+    /// given to `f` where they are mapped.
+    fn read_with<T: Pod, U>(
+        &self,
+        src: &wgpu::Buffer,
+        offset: u64,
+        len: u64,
+        f: impl FnOnce(&[T]) -> U,
+    ) -> Result<U> {
+        let read = self.read_buffer("chains read back", len);
+        let mut enc = self
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("chains read back"),
+            });
+        enc.copy_buffer_to_buffer(src, offset, &read, 0, len);
         self.stats.submitted(0);
         let index = self.queue.submit(Some(enc.finish()));
-        let (rh, rr) = (map_read(&hread), map_read(&rread));
-        let heads: Vec<ChainHead> = self.mapped(&hread, index.clone(), rh)?;
-        let reals: Vec<R> = self
-            .mapped(&rread, index, rr)
-            .context("reading the chains' state back")?;
+        let rx = map_read(&read);
+        let out = self.with_mapped(&read, index, rx, f);
         self.stats.completed();
-        jobs.iter()
-            .zip(&heads)
-            .zip(&e_start)
-            .map(|((j, h), s)| {
-                if h.done == 0 {
-                    return Err(anyhow!("a chain came back unfinished from the device"));
-                }
-                Ok(finish(j, h, &reals, *s))
-            })
-            .collect()
+        out
+    }
+
+    /// The part's outcomes: its headers, then its reals in the groups they
+    /// went up in, each group's outcomes made from the mapping where it lies.
+    fn read_chains<R: Real>(
+        &self,
+        jobs: &[&ChainJob],
+        part: &Part,
+        hbuf: &wgpu::Buffer,
+    ) -> Result<Vec<ChainOutcome>> {
+        let heads: Vec<ChainHead> = self.read_with(hbuf, 0, hbuf.size(), <[ChainHead]>::to_vec)?;
+        if heads.iter().any(|h| h.done == 0) {
+            bail!("a chain came back unfinished from the device");
+        }
+        let size = std::mem::size_of::<R>();
+        let mut out = Vec::with_capacity(jobs.len());
+        let mut base = 0;
+        for g in &part.transfers {
+            let len: usize = part.lens[g.clone()].iter().sum();
+            self.read_with(
+                &part.reals,
+                (base * size) as u64,
+                (len * size) as u64,
+                |reals: &[R]| {
+                    for k in g.clone() {
+                        let (h, at) = (&heads[k], heads[k].sc as usize - base);
+                        let own = &reals[at..at + part.lens[k]];
+                        out.push(finish(jobs[k], h, own, part.e_start[k]));
+                    }
+                },
+            )
+            .context("reading the chains' state back")?;
+            base += len;
+        }
+        Ok(out)
+    }
+
+    /// A staging buffer for reading `size` bytes back.
+    fn read_buffer(&self, label: &str, size: u64) -> wgpu::Buffer {
+        self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some(label),
+            size,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        })
     }
 }

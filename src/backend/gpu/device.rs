@@ -210,6 +210,19 @@ impl Gpu {
         index: wgpu::SubmissionIndex,
         rx: Mapping,
     ) -> Result<Vec<T>> {
+        self.with_mapped(b, index, rx, <[T]>::to_vec)
+    }
+
+    /// Wait for submission `index` and give a mapped buffer's contents to
+    /// `f` where they lie (no host copy of a large read-back; a copy only if
+    /// the mapping is not aligned for `T`).
+    pub(super) fn with_mapped<T: Pod, U>(
+        &self,
+        b: &wgpu::Buffer,
+        index: wgpu::SubmissionIndex,
+        rx: Mapping,
+        f: impl FnOnce(&[T]) -> U,
+    ) -> Result<U> {
         self.device
             .poll(wgpu::PollType::Wait {
                 submission_index: Some(index),
@@ -218,11 +231,16 @@ impl Gpu {
             .map_err(|e| anyhow!("GPU poll failed: {e}"))?;
         rx.recv()?
             .map_err(|e| anyhow!("GPU read-back failed: {e}"))?;
-        let out = bytemuck::pod_collect_to_vec(
-            &b.slice(..)
+        let out = {
+            let range = b
+                .slice(..)
                 .get_mapped_range()
-                .map_err(|e| anyhow!("GPU read-back failed: {e}"))?,
-        );
+                .map_err(|e| anyhow!("GPU read-back failed: {e}"))?;
+            match bytemuck::try_cast_slice::<u8, T>(&range) {
+                Ok(view) => f(view),
+                Err(_) => f(&bytemuck::pod_collect_to_vec::<u8, T>(&range)),
+            }
+        };
         b.unmap();
         Ok(out)
     }
