@@ -768,30 +768,6 @@ impl Gpu {
         }
     }
 
-    /// `len` bytes of `src` from `offset`, copied to a staging buffer and
-    /// given to `f` where they are mapped.
-    fn read_with<T: Pod, U>(
-        &self,
-        src: &wgpu::Buffer,
-        offset: u64,
-        len: u64,
-        f: impl FnOnce(&[T]) -> U,
-    ) -> Result<U> {
-        let read = self.read_buffer("chains read back", len);
-        let mut enc = self
-            .device
-            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                label: Some("chains read back"),
-            });
-        enc.copy_buffer_to_buffer(src, offset, &read, 0, len);
-        self.stats.submitted(0);
-        let index = self.queue.submit(Some(enc.finish()));
-        let rx = map_read(&read);
-        let out = self.with_mapped(&read, index, rx, f);
-        self.stats.completed();
-        out
-    }
-
     /// The part's outcomes: its headers, then its reals in the groups they
     /// went up in, each group's outcomes made from the mapping where it lies.
     fn read_chains<R: Real>(
@@ -825,15 +801,5 @@ impl Gpu {
             base += len;
         }
         Ok(out)
-    }
-
-    /// A staging buffer for reading `size` bytes back.
-    fn read_buffer(&self, label: &str, size: u64) -> wgpu::Buffer {
-        self.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some(label),
-            size,
-            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        })
     }
 }

@@ -59,14 +59,6 @@ impl Gpu {
                 usage,
             })
         };
-        let buffer = |label, size: u64, usage| {
-            d.create_buffer(&wgpu::BufferDescriptor {
-                label: Some(label),
-                size,
-                usage,
-                mapped_at_creation: false,
-            })
-        };
         let software = self.info.device_type == wgpu::DeviceType::Cpu;
         let mut pace = Pace::new(self.profile, software, jobs, wide);
         // A workgroup per scene when wide: the device's own scheduler starts
@@ -86,7 +78,6 @@ impl Gpu {
             .collect();
         let storage = wgpu::BufferUsages::STORAGE;
         let readable = storage | wgpu::BufferUsages::COPY_SRC;
-        let staging = wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST;
         let hdr = init("headers", bytemuck::cast_slice(headers), storage);
         let par = init("params", bytemuck::cast_slice(&params), storage);
         let out_r = init("state_real", bytemuck::cast_slice(&state), readable);
@@ -112,7 +103,7 @@ impl Gpu {
         let qsize = qbuf.size();
         // One staging buffer per round in flight.
         let qread: Vec<wgpu::Buffer> = (0..ROUNDS_IN_FLIGHT)
-            .map(|_| buffer("read_queue", qsize, staging))
+            .map(|_| self.read_buffer("read_queue", qsize))
             .collect();
         fn entry(binding: u32, b: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
             wgpu::BindGroupEntry {
@@ -182,8 +173,8 @@ impl Gpu {
             }
         }
         // The state: after every round queued so far (queue order).
-        let read_r = buffer("read_real", out_r.size(), staging);
-        let read_u = buffer("read_u32", out_u.size(), staging);
+        let read_r = self.read_buffer("read_real", out_r.size());
+        let read_u = self.read_buffer("read_u32", out_u.size());
         let mut enc = d.create_command_encoder(&wgpu::CommandEncoderDescriptor {
             label: Some("read back"),
         });
@@ -201,6 +192,40 @@ impl Gpu {
             self.stats.completed();
         }
         Ok((words, reals))
+    }
+
+    /// A staging buffer for reading `size` bytes back.
+    pub(super) fn read_buffer(&self, label: &str, size: u64) -> wgpu::Buffer {
+        self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some(label),
+            size,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        })
+    }
+
+    /// `len` bytes of `src` from `offset`, copied to a staging buffer and
+    /// given to `f` where they are mapped.
+    pub(super) fn read_with<T: Pod, U>(
+        &self,
+        src: &wgpu::Buffer,
+        offset: u64,
+        len: u64,
+        f: impl FnOnce(&[T]) -> U,
+    ) -> Result<U> {
+        let read = self.read_buffer("read back", len);
+        let mut enc = self
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("read back"),
+            });
+        enc.copy_buffer_to_buffer(src, offset, &read, 0, len);
+        self.stats.submitted(0);
+        let index = self.queue.submit(Some(enc.finish()));
+        let rx = map_read(&read);
+        let out = self.with_mapped(&read, index, rx, f);
+        self.stats.completed();
+        out
     }
 
     /// Wait for submission `index` and copy a mapped buffer's contents out.

@@ -80,7 +80,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
             })
         };
         let outb = buffer(wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC);
-        let read = buffer(wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST);
+        let read = self.read_buffer("probe read", size);
         let bind = d.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("probe"),
             layout: &pipe.get_bind_group_layout(0),
