@@ -61,6 +61,14 @@ struct Head {
     o_snapev: u32,
     o_kw: u32,
     o_ps: u32,
+    o_vs: u32,
+    o_as: u32,
+    o_imp: u32,
+    o_fl: u32,
+    reach: u32,
+    msteps: u32,
+    regions: u32,
+    region_beads: u32,
 }
 
 // Steps per dispatch; chains done (counted once each, read by the host).
@@ -92,6 +100,10 @@ const SC_OMEGA: u32 = 10u;
 const SC_PULSE_IM: u32 = 11u;
 // 1.0: its f32 word is df64's opaque one (`one_s`, layout's ds_b).
 const SC_ONE: u32 = 12u;
+// The local refinement (step::Refine): near, floor, 1/steps.
+const SC_NEAR: u32 = 13u;
+const SC_FLOOR: u32 = 14u;
+const SC_INV_M: u32 = 15u;
 
 const NONE: u32 = 0xffffffffu;
 
@@ -113,6 +125,8 @@ var<workgroup> ws: Step;
 var<workgroup> first_moving: atomic<u32>;
 var<workgroup> last_moving: atomic<u32>;
 var<workgroup> bad: atomic<u32>;
+var<workgroup> regions: atomic<u32>;
+var<workgroup> region_beads: atomic<u32>;
 var<workgroup> red: array<real, WG>;
 
 // This chain's constants (the same in every invocation).
@@ -187,10 +201,15 @@ fn drift(lo: u32, hi: u32, dt: real) {
     }
 }
 
-// Excess forces of contacts lo ..= hi.
-fn excess_forces(lo: u32, hi: u32) {
+// Excess forces of contacts lo ..= hi; `track`: each contact's impulse
+// adds kc·e (step::forces).
+fn excess_forces(lo: u32, hi: u32, track: bool, kc: real) {
     for (var j = lo + me; j <= hi; j += WG) {
-        R[H.o_e + j] = r_sub(hertz(R[H.o_k + j], r_add(R[H.o_d0 + j], R[H.o_p + j])), R[H.o_f0 + j]);
+        let x = r_sub(hertz(R[H.o_k + j], r_add(R[H.o_d0 + j], R[H.o_p + j])), R[H.o_f0 + j]);
+        R[H.o_e + j] = x;
+        if (track) {
+            R[H.o_imp + j] = r_add(R[H.o_imp + j], r_mul(kc, x));
+        }
     }
 }
 
@@ -243,16 +262,230 @@ fn miss(j: u32, h: real) -> real {
     return r_mul(kink_impulse_error(R[H.o_k + j], d0, d1), h);
 }
 
-// step::kinks: bead by bead, its left contact's share, then its right one's.
+// step::kinks for bead i: its left contact's share, then its right one's.
+fn kink_bead(i: u32, h: real) {
+    if (crossed(i)) {
+        R[H.o_v + i] = r_add(R[H.o_v + i], r_mul(miss(i, h), R[H.o_im + i]));
+    }
+    if (crossed(i + 1u)) {
+        R[H.o_v + i] = r_sub(R[H.o_v + i], r_mul(miss(i + 1u, h), R[H.o_im + i]));
+    }
+}
+
 fn kinks(lo: u32, hi: u32, h: real) {
     for (var i = lo + me; i < hi; i += WG) {
-        if (crossed(i)) {
-            R[H.o_v + i] = r_add(R[H.o_v + i], r_mul(miss(i, h), R[H.o_im + i]));
+        kink_bead(i, h);
+    }
+}
+
+// ---- the local refinement (step::Refine) ----
+
+// step::is_near of contact j.
+fn is_near(j: u32) -> bool {
+    let ps = R[H.o_ps + j];
+    let p = R[H.o_p + j];
+    let da = r_add(R[H.o_d0 + j], ps);
+    let db = r_add(R[H.o_d0 + j], p);
+    let dd = r_abs(r_sub(p, ps));
+    let zero = real(0.0);
+    let close = r_gt(dd, R[H.sc + SC_FLOOR]) && (r_gt(da, zero) || r_gt(db, zero))
+        && r_lt(r_min(r_abs(da), r_abs(db)), r_mul(R[H.sc + SC_NEAR], dd));
+    return ((r_gt(da, zero) != r_gt(db, zero)) || close) && r_nz(R[H.o_k + j]);
+}
+
+// step::Hermite::new of bead i: [c1, c2, c3, c4].
+fn hermite(i: u32, h: real) -> array<real, 4> {
+    let v0 = R[H.o_vs + i];
+    let a0 = R[H.o_as + i];
+    let v1 = R[H.o_v + i];
+    let a1 = R[H.o_a + i];
+    let c3 = r_sub(r_sub(v1, v0), r_mul(h, r_add(r_mul(TWO_THIRDS, a0), r_mul(ONE_THIRD, a1))));
+    let c4 = r_add(r_mul(real(0.5), r_sub(v0, v1)), r_mul(real(0.25), r_mul(h, r_add(a0, a1))));
+    return array<real, 4>(v0, r_mul(real(0.5), r_mul(h, a0)), c3, c4);
+}
+
+// step::Hermite::at.
+fn hermite_at(c: array<real, 4>, h: real, th: real) -> real {
+    let poly = r_add(c[0], r_mul(th, r_add(c[1], r_mul(th, r_add(c[2], r_mul(th, c[3]))))));
+    return r_mul(r_mul(h, th), poly);
+}
+
+// step::redo: beads a .. b (contacts a ..= b) of the step from t0 by h
+// (last substep at t_end) redone as H.msteps finer steps, by one invocation.
+fn redo(a: u32, b: u32, t0: real, h: real, t_end: real, lo: u32, hi: u32) {
+    let n = H.n;
+    let zero = real(0.0);
+    let half = real(0.5);
+    for (var j = a; j <= b; j++) {
+        R[H.o_p + j] = R[H.o_ps + j];
+        R[H.o_e + j] = r_sub(hertz(R[H.o_k + j], r_add(R[H.o_d0 + j], R[H.o_p + j])), R[H.o_f0 + j]);
+    }
+    for (var i = a; i < b; i++) {
+        R[H.o_v + i] = R[H.o_vs + i];
+        R[H.o_a + i] = R[H.o_as + i];
+    }
+    let left = a > lo;
+    let right = b < hi;
+    var ql = array<real, 4>(zero, zero, zero, zero);
+    var qr = array<real, 4>(zero, zero, zero, zero);
+    if (left) {
+        ql = hermite(a - 1u, h);
+    }
+    if (right) {
+        qr = hermite(b, h);
+    }
+    let inv_m = R[H.sc + SC_INV_M];
+    let hf = r_mul(h, inv_m);
+    let s = H.stages;
+    let pdur = R[H.sc + SC_PULSE_DURATION];
+    let pforce = R[H.sc + SC_PULSE_FORCE];
+    let omega = R[H.sc + SC_OMEGA];
+    let pulse = (H.flags & F_PULSE) != 0u && r_lt(t0, pdur) && H.pulse_bead >= a && H.pulse_bead < b;
+    var ja = zero;
+    var jb = zero;
+    var xa = zero;
+    var xb = zero;
+    var th = zero;
+    for (var f = 0u; f < H.msteps; f++) {
+        for (var j = a; j <= b; j++) {
+            R[H.o_ps + j] = R[H.o_p + j];
         }
-        if (crossed(i + 1u)) {
-            R[H.o_v + i] = r_sub(R[H.o_v + i], r_mul(miss(i + 1u, h), R[H.o_im + i]));
+        var t = r_add(t0, r_mul(r_count(f, 0u), hf));
+        let c0 = r_mul(r_mul(half, wts[0]), hf);
+        ja = r_add(ja, r_mul(c0, R[H.o_e + a]));
+        jb = r_add(jb, r_mul(c0, R[H.o_e + b]));
+        for (var i = a; i < b; i++) {
+            R[H.o_v + i] = r_add(R[H.o_v + i], r_mul(c0, R[H.o_a + i]));
+        }
+        for (var k = 0u; k < s; k++) {
+            let wj = wts[k];
+            let dt = r_mul(wj, hf);
+            th = r_add(th, r_mul(wj, inv_m));
+            var da = zero;
+            var db = zero;
+            if (left) {
+                let x = hermite_at(ql, h, th);
+                da = r_sub(x, xa);
+                xa = x;
+            }
+            if (right) {
+                let x = hermite_at(qr, h, th);
+                db = r_sub(x, xb);
+                xb = x;
+            }
+            for (var j = a; j <= b; j++) {
+                let p = R[H.o_p + j];
+                if (j == 0u) {
+                    R[H.o_p] = r_sub(p, r_mul(dt, R[H.o_v]));
+                } else if (j == n) {
+                    R[H.o_p + n] = r_add(p, r_mul(dt, R[H.o_v + n - 1u]));
+                } else if (j == a && left) {
+                    R[H.o_p + j] = r_add(p, r_sub(da, r_mul(dt, R[H.o_v + j])));
+                } else if (j == b && right) {
+                    R[H.o_p + j] = r_add(p, r_sub(r_mul(dt, R[H.o_v + j - 1u]), db));
+                } else {
+                    R[H.o_p + j] = r_add(p, r_mul(dt, r_sub(R[H.o_v + j - 1u], R[H.o_v + j])));
+                }
+            }
+            t = r_add(t, dt);
+            for (var j = a; j <= b; j++) {
+                R[H.o_e + j] = r_sub(hertz(R[H.o_k + j], r_add(R[H.o_d0 + j], R[H.o_p + j])), R[H.o_f0 + j]);
+            }
+            for (var i = a; i < b; i++) {
+                R[H.o_a + i] = r_mul(r_sub(R[H.o_e + i], R[H.o_e + i + 1u]), R[H.o_im + i]);
+            }
+            if (pulse) {
+                let fp = r_mul(pforce, pulse_sin(t, omega));
+                R[H.o_a + H.pulse_bead] = r_add(R[H.o_a + H.pulse_bead], r_mul(fp, R[H.sc + SC_PULSE_IM]));
+            }
+            var kc = r_mul(r_mul(half, wj), hf);
+            if (k + 1u < s) {
+                kc = r_mul(r_mul(half, r_add(wj, wts[k + 1u])), hf);
+            }
+            ja = r_add(ja, r_mul(kc, R[H.o_e + a]));
+            jb = r_add(jb, r_mul(kc, R[H.o_e + b]));
+            for (var i = a; i < b; i++) {
+                R[H.o_v + i] = r_add(R[H.o_v + i], r_mul(kc, R[H.o_a + i]));
+            }
+        }
+        for (var i = a; i < b; i++) {
+            kink_bead(i, hf);
+        }
+        if (crossed(a)) {
+            ja = r_add(ja, miss(a, hf));
+        }
+        if (crossed(b)) {
+            jb = r_add(jb, miss(b, hf));
         }
     }
+    if (left) {
+        fix_outside(a - 1u, r_sub(R[H.o_imp + a], ja), t0, t_end);
+    }
+    if (right) {
+        fix_outside(b, r_sub(jb, R[H.o_imp + b]), t0, t_end);
+    }
+}
+
+// step::redo's last part for an outside bead i: the impulse dv, then its
+// acceleration from the new forces.
+fn fix_outside(i: u32, dv: real, t0: real, t_end: real) {
+    R[H.o_v + i] = r_add(R[H.o_v + i], r_mul(dv, R[H.o_im + i]));
+    var acc = r_mul(r_sub(R[H.o_e + i], R[H.o_e + i + 1u]), R[H.o_im + i]);
+    if ((H.flags & F_PULSE) != 0u && H.pulse_bead == i && r_lt(t0, R[H.sc + SC_PULSE_DURATION])) {
+        let w = R[H.sc + SC_OMEGA];
+        acc = r_add(acc, r_mul(r_mul(R[H.sc + SC_PULSE_FORCE], pulse_sin(t_end, w)), R[H.sc + SC_PULSE_IM]));
+    }
+    R[H.o_a + i] = acc;
+}
+
+// step::refine_near, in parallel: every contact near a crossing flagged,
+// then the invocation holding the first contact of each group redoes the
+// group's region (regions never touch: Refine).
+fn refine_near(lo: u32, hi: u32, t0: real, h: real, t_end: real) {
+    for (var j = lo + me; j <= hi; j += WG) {
+        if (crossed(j)) {
+            R[H.o_imp + j] = r_add(R[H.o_imp + j], miss(j, h));
+        }
+        R[H.o_fl + j] = select(real(0.0), real(1.0), is_near(j));
+    }
+    storageBarrier();
+    let l = H.reach;
+    let gap = 2u * l + 1u;
+    for (var j = lo + me; j <= hi; j += WG) {
+        if (!r_nz(R[H.o_fl + j])) {
+            continue;
+        }
+        var first = true;
+        let back = select(lo, j - gap, j >= lo + gap);
+        for (var q = back; q < j; q++) {
+            if (r_nz(R[H.o_fl + q])) {
+                first = false;
+            }
+        }
+        if (!first) {
+            continue;
+        }
+        var last = j;
+        var grew = true;
+        while (grew) {
+            grew = false;
+            let to = min(last + gap, hi);
+            for (var q = last + 1u; q <= to; q++) {
+                if (r_nz(R[H.o_fl + q])) {
+                    last = q;
+                    grew = true;
+                }
+            }
+        }
+        let a = select(lo, j - l, j >= lo + l);
+        let b = min(last + l, hi);
+        if (b > a) {
+            atomicAdd(&regions, 1u);
+            atomicAdd(&region_beads, b - a);
+            redo(a, b, t0, h, t_end, lo, hi);
+        }
+    }
+    storageBarrier();
 }
 
 // step::step_portable from st.t0 by st.h over the window st.lo .. st.hi.
@@ -267,24 +500,35 @@ fn step(st: Step) {
     let has_pulse = (H.flags & F_PULSE) != 0u && H.pulse_bead >= lo && H.pulse_bead < hi;
     var t = st.t0;
     let kinked = (H.flags & F_KINKS) != 0u;
+    let refine = (H.flags & F_REFINE) != 0u;
+    let c0 = r_mul(r_mul(real(0.5), wts[0]), h);
     if (kinked) {
         for (var j = lo + me; j <= hi; j += WG) {
             R[H.o_ps + j] = R[H.o_p + j];
         }
     }
-    kick(lo, hi, r_mul(r_mul(real(0.5), wts[0]), h));
+    if (refine) {
+        for (var i = lo + me; i < hi; i += WG) {
+            R[H.o_vs + i] = R[H.o_v + i];
+            R[H.o_as + i] = R[H.o_a + i];
+        }
+        for (var j = lo + me; j <= hi; j += WG) {
+            R[H.o_imp + j] = r_mul(c0, R[H.o_e + j]);
+        }
+    }
+    kick(lo, hi, c0);
     storageBarrier();
     for (var j = 0u; j < s; j++) {
         let wj = wts[j];
         drift(lo, hi, r_mul(wj, h));
         t = r_add(t, r_mul(wj, h));
         storageBarrier();
-        excess_forces(lo, hi);
-        storageBarrier();
         var c = r_mul(r_mul(real(0.5), wj), h);
         if (j + 1u < s) {
             c = r_mul(r_mul(real(0.5), r_add(wj, wts[j + 1u])), h);
         }
+        excess_forces(lo, hi, refine, c);
+        storageBarrier();
         // step::pulse_on: by the step's start, not the substep's time.
         let on = has_pulse && r_lt(st.t0, pdur);
         var f = real(0.0);
@@ -297,6 +541,9 @@ fn step(st: Step) {
     if (kinked) {
         kinks(lo, hi, h);
         storageBarrier();
+    }
+    if (refine) {
+        refine_near(lo, hi, st.t0, h, t);
     }
 }
 
@@ -503,6 +750,8 @@ fn top() {
     atomicStore(&first_moving, NONE);
     atomicStore(&last_moving, 0u);
     atomicStore(&bad, 0u);
+    atomicStore(&regions, 0u);
+    atomicStore(&region_beads, 0u);
     if (hd.done != 0u) {
         return;
     }
@@ -581,6 +830,8 @@ fn after_step(st: Step) {
     }
     hd.lo = lo;
     hd.hi = hi;
+    hd.regions += atomicLoad(&regions);
+    hd.region_beads += atomicLoad(&region_beads);
     hd.steps_lo += 1u;
     if (hd.steps_lo == 0u) {
         hd.steps_hi += 1u;

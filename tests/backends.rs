@@ -1020,7 +1020,8 @@ fn gpu_profiles_parse_with_clear_errors() {
 /// per chain, shaders/chains.wgsl) give the CPU's outcomes bit for bit on
 /// lavapipe: free ends and walls, precompression, a force pulse (its sine
 /// and its push on the bead), a dimer pattern, a taper, an impurity, a
-/// stop time and the default end at the far peak, chains shorter and
+/// stop time and the default end at the far peak, the local refinement
+/// (with the pulse on in a region), chains shorter and
 /// longer than a workgroup (64 invocations striding over 200 beads), an
 /// invalid chain passed through, the caps (a step cap mid-run), and a part
 /// of 10^4-bead chains whose reals go up and come back in several groups.
@@ -1030,14 +1031,16 @@ fn gpu_chain_kernel_gives_the_cpus_chain_outcomes() {
     use hertz_cradle::engine::granular::{self, Beads, ChainOutcome};
     let Some(g) = gpu() else { return };
     let scenes = [
-        // struck free chain, default end (the far bead's first peak)
-        "balls = 40\nradius = 0.005\n[launch]\nballs = 1\nvelocity = 0.1\n[probes]\nbeads = [10, 30]\n",
+        // struck free chain, default end (the far bead's first peak); a
+        // tolerance whose steps take the local refinement (step::Refine)
+        "balls = 40\nradius = 0.005\n[launch]\nballs = 1\nvelocity = 0.1\n[probes]\nbeads = [10, 30]\n[solver]\ntolerance = 1e-9\n",
         // 200-bead dimer against a wall: more beads than invocations
         "balls = 200\nradius = 0.005\n[walls]\nright = true\n[pattern]\nradius = [0.005, 0.0035]\n[launch]\nballs = 1\nvelocity = 0.2\n[probes]\nbeads = [20, 150, 199]\n",
         // precompressed between walls, pulse on the last bead, taper, impurity, stop time
-        "balls = 130\nradius = 0.005\n[walls]\nleft = true\nright = true\nprecompression = 2.0\n[impurity]\nbeads = [64]\nradius = 0.003\n[taper]\nratio = 0.001\n[pulse]\nbead = 129\nforce = 30.0\nduration = 2e-5\n[probes]\nbeads = [10, 64, 100]\n[stop]\nduration = 4e-4\n",
-        // pulse on a free chain, several steps per pulse, given dt
-        "balls = 30\nradius = 0.005\n[pulse]\nbead = 0\nforce = 20.0\nduration = 1e-6\n[solver]\ndt = 1e-8\n[probes]\nbeads = [5, 25]\n[stop]\nduration = 3e-6\n",
+        "balls = 130\nradius = 0.005\n[walls]\nleft = true\nright = true\nprecompression = 2.0\n[impurity]\nbeads = [64]\nradius = 0.003\n[taper]\nratio = 0.001\n[pulse]\nbead = 129\nforce = 30.0\nduration = 2e-5\n[probes]\nbeads = [10, 64, 100]\n[stop]\nduration = 4e-4\n[solver]\ntolerance = 1e-9\n",
+        // pulse on a free chain, many steps per pulse, given dt: regions
+        // refined around the pushed bead while the pulse is on
+        "balls = 30\nradius = 0.005\n[pulse]\nbead = 0\nforce = 20.0\nduration = 1e-6\n[solver]\ndt = 2e-9\n[probes]\nbeads = [5, 25]\n[stop]\nduration = 3e-6\n",
     ];
     let mut jobs: Vec<Option<ChainJob>> = scenes
         .iter()
@@ -1119,6 +1122,11 @@ fn gpu_chain_kernel_gives_the_cpus_chain_outcomes() {
     assert_eq!(gpu[5].steps, 777);
     for k in [0, 2, 3, 4] {
         assert_eq!(status(&gpu[k]), Status::Ok, "chain {k}");
+    }
+    // Regions around crossings redone (step::Refine), the same ones on both
+    // backends (compared above): struck, precompressed and pulse-driven.
+    for k in [0, 3, 4] {
+        assert!(gpu[k].regions > 0, "chain {k}: no region refined");
     }
     // The struck chains' pulses reach every probe.
     for k in [0, 2] {

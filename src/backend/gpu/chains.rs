@@ -30,7 +30,7 @@ pub const CHAIN_WG: u32 = 64;
 /// Most substeps of a method (the shader's private weights).
 const MAX_STAGES: usize = 16;
 /// Reals of a chain's scalars (`SC_*` in the shader).
-const SCALARS: usize = 13;
+const SCALARS: usize = 16;
 /// Reals per probe: its velocity peak, then its force peak.
 const PROBE_REALS: usize = 2 * FIRST_PEAK_REALS;
 /// Loop iterations per dispatch and workgroup on a software adapter
@@ -53,6 +53,7 @@ const F_END_AT: u32 = 2;
 const F_RIGHT: u32 = 8;
 const F_PULSE: u32 = 16;
 const F_KINKS: u32 = 32;
+const F_REFINE: u32 = 64;
 const SNAP_WIDTH: u32 = 1;
 const SNAP_ENERGY: u32 = 2;
 const ST_STEP_CAP: u32 = 1;
@@ -98,6 +99,16 @@ pub struct ChainHead {
     pub o_snapev: u32,
     pub o_kw: u32,
     pub o_ps: u32,
+    pub o_vs: u32,
+    pub o_as: u32,
+    pub o_imp: u32,
+    pub o_fl: u32,
+    /// The local refinement's reach and finer steps (`step::Refine`).
+    pub reach: u32,
+    pub msteps: u32,
+    /// Regions redone and their beads so far (`ChainOutcome::regions`).
+    pub regions: u32,
+    pub region_beads: u32,
 }
 
 /// Steps per dispatch, and chains done.
@@ -144,6 +155,8 @@ pub fn chain_shader(precision: Precision) -> String {
         ("ALMOST_ONE", 1.0 - 1e-12),
         ("HALF_PI", std::f64::consts::FRAC_PI_2),
         ("PI", std::f64::consts::PI),
+        ("TWO_THIRDS", 2.0 / 3.0),
+        ("ONE_THIRD", 1.0 / 3.0),
     ];
     for (name, x) in reals {
         let _ = writeln!(s, "const {name}: real = {};", real_literal(x, precision));
@@ -158,7 +171,7 @@ pub fn chain_shader(precision: Precision) -> String {
             "fn r_count(lo: u32, hi: u32) -> real { return f64(hi) * 4294967296.0 + f64(lo); }\nfn r_finite(a: real) -> bool { return abs(a) <= 1.7976931348623157e308; }\n"
         }
     });
-    let consts: [(&str, String); 14] = [
+    let consts: [(&str, String); 15] = [
         ("WG: u32", format!("{CHAIN_WG}u")),
         ("MAX_STAGES: u32", format!("{MAX_STAGES}u")),
         ("MARGIN_EXTRA: u32", format!("{MARGIN_EXTRA}u")),
@@ -168,6 +181,7 @@ pub fn chain_shader(precision: Precision) -> String {
         ("F_RIGHT: u32", format!("{F_RIGHT}u")),
         ("F_PULSE: u32", format!("{F_PULSE}u")),
         ("F_KINKS: u32", format!("{F_KINKS}u")),
+        ("F_REFINE: u32", format!("{F_REFINE}u")),
         ("SNAP_WIDTH: u32", format!("{SNAP_WIDTH}u")),
         ("SNAP_ENERGY: u32", format!("{SNAP_ENERGY}u")),
         ("ST_STEP_CAP: u32", format!("{ST_STEP_CAP}u")),
@@ -237,11 +251,16 @@ struct Offsets {
     snapev: usize,
     kw: usize,
     ps: usize,
+    vs: usize,
+    as_: usize,
+    imp: usize,
+    fl: usize,
     len: usize,
 }
 
 impl Offsets {
-    fn of(n: usize, stages: usize, probes: usize) -> Offsets {
+    /// `refine`: room for the local refinement's scratch.
+    fn of(n: usize, stages: usize, probes: usize, refine: bool) -> Offsets {
         let mut at = SCALARS;
         let mut take = |len: usize| {
             let o = at;
@@ -264,6 +283,11 @@ impl Offsets {
         let snapev = take(n);
         let kw = take(stages + 1);
         let ps = take(n + 1);
+        let m = if refine { n + 1 } else { 0 };
+        let vs = take(m);
+        let as_ = take(m);
+        let imp = take(m);
+        let fl = take(m);
         Offsets {
             w,
             im,
@@ -281,6 +305,10 @@ impl Offsets {
             snapev,
             kw,
             ps,
+            vs,
+            as_,
+            imp,
+            fl,
             len: at,
         }
     }
@@ -308,10 +336,11 @@ fn pack<R: Real>(job: &ChainJob, base: usize, probe_at: usize) -> (ChainHead, f6
     let n = b.n;
     let w = plan.weights;
     let c = Consts::<R>::of(b);
-    let st = State::start(b, &c, w, false);
+    let st = State::start(b, &c, w, false, false);
     let mut watch = Watch::<R>::new(b);
     watch.see(b, &c, &st, R::zero());
-    let o = Offsets::of(n, w.len(), b.probes.len());
+    let refine = plan.substeps().refine;
+    let o = Offsets::of(n, w.len(), b.probes.len(), refine.is_some());
     let zero = R::zero();
     let mut r = vec![zero; o.len];
     let pulse = c.pulse.as_ref();
@@ -328,6 +357,11 @@ fn pack<R: Real>(job: &ChainJob, base: usize, probe_at: usize) -> (ChainHead, f6
     r[10] = pulse.map_or(zero, |p| p.omega);
     r[11] = pulse.map_or(zero, |p| p.inv_mass);
     r[12] = R::one();
+    if let Some(rf) = &refine {
+        r[13] = R::of(rf.near);
+        r[14] = R::of(rf.floor);
+        r[15] = R::of(1.0 / rf.steps as f64);
+    }
     let conv = |x: &[f64]| x.iter().map(|&x| R::of(x)).collect::<Vec<R>>();
     r[o.w..o.w + w.len()].copy_from_slice(&conv(w));
     if let Some(kw) = &plan.kicks {
@@ -368,6 +402,9 @@ fn pack<R: Real>(job: &ChainJob, base: usize, probe_at: usize) -> (ChainHead, f6
     if plan.kicks.is_some() {
         flags |= F_KINKS;
     }
+    if refine.is_some() {
+        flags |= F_REFINE;
+    }
     let head = ChainHead {
         n: n as u32,
         stages: w.len() as u32,
@@ -396,6 +433,12 @@ fn pack<R: Real>(job: &ChainJob, base: usize, probe_at: usize) -> (ChainHead, f6
         o_snapev: u(o.snapev),
         o_kw: u(o.kw),
         o_ps: u(o.ps),
+        o_vs: u(o.vs),
+        o_as: u(o.as_),
+        o_imp: u(o.imp),
+        o_fl: u(o.fl),
+        reach: refine.map_or(0, |r| r.reach as u32),
+        msteps: refine.map_or(0, |r| r.steps as u32),
         ..Default::default()
     };
     (head, run::energy(b, &st), r)
@@ -421,7 +464,9 @@ fn finish<R: Real>(job: &ChainJob, h: &ChainHead, reals: &[R], e_start: f64) -> 
         x0: R::of(f64::NAN),
         lo: h.lo as usize,
         hi: h.hi as usize,
-        p_start: Vec::new(),
+        scratch: crate::engine::granular::step::Scratch::none(),
+        regions: h.regions as u64,
+        region_beads: h.region_beads as u64,
     };
     let mut watch = Watch::<R>::new(b);
     let mut o = rel(h.o_watch);
@@ -470,7 +515,14 @@ fn loops_per_step(job: &ChainJob) -> usize {
     let probes = job.beads.probes.len();
     // kick, shrink scan, snapshots (3), checks (2); per stage drift, forces,
     // accelerations and the pulse's sine (10); observers' cosines (10 each).
-    1 + 6 * strides + s * (3 * strides + 11) + probes * 11 + 10 + CHAIN_WG as usize + 16
+    let base = 1 + 6 * strides + s * (3 * strides + 11) + probes * 11 + 10 + CHAIN_WG as usize + 16;
+    // The local refinement: the copies and flags (4), the group scans, and
+    // as if one region of 2·reach + 1 beads were redone every step.
+    let refine = job.plan.substeps().refine.map_or(0, |r| {
+        let beads = 2 * r.reach + 1;
+        4 * strides + 4 * beads + r.steps * (s * (3 * beads + 16) + 2 * beads + 4)
+    });
+    base + refine
 }
 
 impl Gpu {
@@ -563,7 +615,12 @@ impl Gpu {
     fn run_chain_jobs_in<R: Real>(&self, jobs: &[&ChainJob]) -> Result<Vec<ChainOutcome>> {
         let pipe = self.chain_pipe(R::PRECISION)?;
         let bytes = |j: &ChainJob| {
-            let o = Offsets::of(j.beads.n, j.plan.weights.len(), j.beads.probes.len());
+            let o = Offsets::of(
+                j.beads.n,
+                j.plan.weights.len(),
+                j.beads.probes.len(),
+                j.plan.substeps().refine.is_some(),
+            );
             (o.len * 8) as u64
         };
         let mut out = Vec::with_capacity(jobs.len());
@@ -610,7 +667,15 @@ impl Gpu {
         let size = std::mem::size_of::<R>();
         let lens: Vec<usize> = jobs
             .iter()
-            .map(|j| Offsets::of(j.beads.n, j.plan.weights.len(), j.beads.probes.len()).len)
+            .map(|j| {
+                Offsets::of(
+                    j.beads.n,
+                    j.plan.weights.len(),
+                    j.beads.probes.len(),
+                    j.plan.substeps().refine.is_some(),
+                )
+                .len
+            })
             .collect();
         let transfers = super::parts(jobs.len(), usize::MAX, TRANSFER_BYTES, |k| {
             (lens[k] * size) as u64

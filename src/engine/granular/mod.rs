@@ -387,6 +387,10 @@ pub struct Plan {
     /// inside a step get the kink correction ([`step::Substeps`]): methods
     /// above order 2, as in the cradle engine. `None`: no correction.
     pub kicks: Option<Vec<f64>>,
+    /// The local refinement around contacts near a crossing
+    /// ([`step::Refine`]): for the methods with a [`refined_error_model`]
+    /// at steps of t_s/[`REFINE_FROM`] and finer (needs `kicks`).
+    pub refine: Option<step::Refine>,
     /// `[stop] duration`, if given: the run ends exactly there.
     pub duration: Option<f64>,
     /// Without a duration: the time cap (s).
@@ -405,44 +409,76 @@ impl Plan {
         step::Substeps {
             weights: self.weights,
             kicks: self.kicks.as_deref(),
+            refine: self.refine.filter(|_| self.kicks.is_some()),
         }
     }
 }
 
-/// Error model of each method on a chain's outcomes (docs/SPEC.md §9):
-/// error ≈ C·(h/t_s)^q·(T/t_s) relative to the velocity scale, t_s =
-/// [`Beads::time_scale`], T the run's length ([`Beads::run_length`]): a
-/// travelling wave's phase error grows with the time it travels. Fitted by
-/// `scripts/chain_error_fit.py` on uniform steel chains struck at one end
-/// (R = 5 mm, 0.1 m/s) of 200 and 1,000 beads, run while the wave is in
-/// the chain (T = 82 and 408 t_s; the worst of the probes' peak times and
-/// values and every bead's final velocity, against kahanli6 at t_s/16000)
-/// at 36 steps from t_s/20 to t_s/2560: q by least squares over both
-/// chains, C the envelope of every point (error/T ≤ C·(h/t_s)^q) times a
-/// margin of 3 (verlet's, fitted before the kink correction and unchanged:
-/// 2.3); errors below 1e-10, f64's round-off over millions of steps rather
-/// than the step's, are left out. Contacts open and close inside steps;
-/// with the kink correction ([`step::Substeps`]) the methods above order 2
-/// keep more of their order
-/// (kahanli6 3.3, yoshida4 3.5, yoshida6 2.9, suzuki4 2.8 over the whole
-/// range; kahanli6 fell as h^1.6 without it), and a kink's error depends on
-/// where in its step the contact crosses: the errors scatter up to ~10×
-/// about the trend, which the envelope covers.
+/// Error model of each method on a chain's outcomes without the local
+/// refinement (docs/SPEC.md §9): error ≈ C·(h/t_s)^q·(T/t_s) relative to
+/// the velocity scale, t_s = [`Beads::time_scale`], T the run's length
+/// ([`Beads::run_length`]): a travelling wave's phase error grows with the
+/// time it travels. Fitted by `scripts/chain_error_fit.py` on uniform steel
+/// chains struck at one end (R = 5 mm, 0.1 m/s) of 200 and 1,000 beads,
+/// run while the wave is in the chain (T = 82 and 408 t_s; the worst of the
+/// probes' peak times and values and every bead's final velocity, against
+/// kahanli6 at t_s/16000) at 36 steps from t_s/20 to t_s/2560 — for the
+/// methods the refinement is for ([`refined_error_model`]) the 11 coarser
+/// than t_s/[`REFINE_FROM`], where this model applies: q by least squares
+/// over both chains, C the envelope of every point (error/T ≤ C·(h/t_s)^q)
+/// times a margin of 3 (verlet's, fitted before the kink correction and
+/// unchanged: 2.3); errors below 1e-10, f64's round-off over millions of
+/// steps rather than the step's, are left out. Contacts open and close
+/// inside steps; with the kink correction ([`step::Substeps`]) the methods
+/// above order 2 keep more of their order (kahanli6 fell as h^1.6 without
+/// it), and a kink's error depends on where in its step the contact
+/// crosses: the errors scatter up to ~10× about the trend, which the
+/// envelope covers.
 pub fn chain_error_model(m: crate::scene::Method) -> (f64, f64) {
     use crate::scene::Method::*;
     match m {
         Verlet => (0.8, 2.0),
         Yoshida4 => (11.7, 3.52),
-        Suzuki4 => (0.0119, 2.82),
-        Yoshida6 => (0.0144, 2.86),
-        KahanLi6 => (0.00921, 3.32),
+        Suzuki4 => (0.199, 3.63),
+        Yoshida6 => (0.0146, 2.87),
+        KahanLi6 => (0.00412, 3.13),
+    }
+}
+
+/// Steps per time scale from which the local refinement is on
+/// ([`step::Refine`]): at coarser steps the decaying tail behind a solitary
+/// wave has contacts near a crossing in every step (a region of 6–20 beads
+/// redone each step, 3–5× the step's cost) and the refinement does not
+/// lower the error; from here on regions are rare (< 0.1 per step) and the
+/// error falls at the method's order.
+pub const REFINE_FROM: f64 = 90.0;
+
+/// [`chain_error_model`] with the local refinement (h ≤ t_s/[`REFINE_FROM`];
+/// docs/SPEC.md §9): (C, q), fitted as `chain_error_model` is, on the 25
+/// steps where the refinement is on, errors below 5e-11 (where the
+/// 1,000-bead chain's level off: round-off over its 10^5–10^6 steps) left
+/// out (results/chain_error_fit.md). `None`: the method runs without it.
+pub fn refined_error_model(m: crate::scene::Method) -> Option<(f64, f64)> {
+    use crate::scene::Method::*;
+    match m {
+        // Yoshida4's error is its smooth part's (C is 10^3 times the
+        // others'), and the refinement raised it; yoshida6's is dominated by
+        // spikes at some steps (as built too), which leave a refined fit at
+        // q ~ 1: both run without (results/chain_error_fit.md).
+        Verlet | Yoshida4 | Yoshida6 => None,
+        Suzuki4 => Some((0.00179, 2.70)),
+        KahanLi6 => Some((3850.0, 6.58)),
     }
 }
 
 /// The fixed step of a chain run (docs/SPEC.md §9): under a tolerance,
 /// h = t_s·(tol/C)^{1/q} with the method's error model (C, q) of
-/// [`chain_error_model`] and t_s = [`Beads::time_scale`], at most t_s/20; a
-/// given `dt` as is. A pulse that ends within the run ends on a step
+/// [`chain_error_model`] and t_s = [`Beads::time_scale`], at most t_s/20;
+/// where that is finer than t_s/[`REFINE_FROM`] and the method has a
+/// [`refined_error_model`], h from that model instead, at most
+/// t_s/`REFINE_FROM`, with the local refinement on ([`Plan::refine`]). A
+/// given `dt` as is (the refinement on from t_s/`REFINE_FROM` down). A
+/// pulse that ends within the run ends on a step
 /// boundary (the step shrinks to τ/⌈τ/h⌉): its force's kink at τ is then
 /// never inside a step ([`step::pulse_on`]), and the methods keep their
 /// orders (kahanli6: 6, against 2 with τ inside a step). A trace's row
@@ -452,12 +488,21 @@ pub fn chain_error_model(m: crate::scene::Method) -> (f64, f64) {
 /// as well, if there is one (else the rows win).
 pub fn plan(beads: &Beads, solver: &Solver, every: Option<f64>) -> Plan {
     let ts = beads.time_scale();
+    let fine = ts / REFINE_FROM;
+    let refinable = refined_error_model(solver.method).is_some();
     let mut h = match solver.step {
         StepRule::Dt(dt) => dt,
         StepRule::Tolerance(tol) => {
-            let (c, q) = chain_error_model(solver.method);
             let tol = tol / (beads.run_length() / ts).max(FIT_LENGTH);
-            (ts * (tol / c).powf(1.0 / q)).min(ts / MIN_STEPS_PER_SCALE)
+            let at = |(c, q): (f64, f64)| ts * (tol / c).powf(1.0 / q);
+            let coarse = at(chain_error_model(solver.method)).min(ts / MIN_STEPS_PER_SCALE);
+            match refined_error_model(solver.method).map(at) {
+                // Refined steps meet the tolerance from some step at or
+                // below t_s/REFINE_FROM (at most that step), and coarse
+                // ones need finer than that: refine.
+                Some(h) if coarse < fine => h.min(fine),
+                _ => coarse,
+            }
         }
     } * solver.step_factor;
     // τ, when the pulse ends before the run does.
@@ -489,11 +534,18 @@ pub fn plan(beads: &Beads, solver: &Solver, every: Option<f64>) -> Plan {
             .max_time
             .min(TIME_CAP_TRANSITS * beads.length() / beads.wave_speed(0.01 * beads.v_scale()))
     });
+    let kicks = (solver.method.order() > 2)
+        .then(|| crate::engine::integrate::kick_weights(weights(solver.method)));
     Plan {
         h,
         weights: weights(solver.method),
-        kicks: (solver.method.order() > 2)
-            .then(|| crate::engine::integrate::kick_weights(weights(solver.method))),
+        refine: (refinable && h <= fine).then(|| step::Refine {
+            reach: step::REFINE_REACH,
+            steps: step::REFINE_STEPS,
+            near: step::REFINE_NEAR,
+            floor: step::REFINE_FLOOR * beads.v_scale() * ts,
+        }),
+        kicks,
         duration: beads.duration,
         max_time,
         max_steps: solver.max_steps,

@@ -306,6 +306,10 @@ pub struct ChainOutcome {
     pub v: Vec<f64>,
     pub t_end: f64,
     pub steps: u64,
+    /// Regions the local refinement redid, and their beads in all
+    /// ([`super::step::Refine`]).
+    pub regions: u64,
+    pub region_beads: u64,
     /// The step (s).
     pub dt: f64,
 }
@@ -331,6 +335,8 @@ impl ChainOutcome {
             v: vec![],
             t_end: f64::NAN,
             steps: 0,
+            regions: 0,
+            region_beads: 0,
             dt: f64::NAN,
         }
     }

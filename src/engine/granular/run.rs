@@ -66,7 +66,7 @@ fn run_in<R: Real>(b: &Beads, plan: &Plan, rows: &mut dyn Rows, whole: bool) -> 
     let w = plan.weights;
     let m = plan.substeps();
     let c = Consts::<R>::of(b);
-    let mut st = State::start(b, &c, w, whole);
+    let mut st = State::start(b, &c, w, whole, m.refine.is_some());
     let mut obs = Watch::new(b);
     let mut e_ref = b.pulse.is_none().then(|| energy(b, &st));
     let every = plan.every.map(|e| ((e / plan.h).round() as u64).max(1));
@@ -352,6 +352,8 @@ pub fn finish<R: Real>(
         v: st.v.clone(),
         t_end: t,
         steps: st.steps,
+        regions: st.regions,
+        region_beads: st.region_beads,
         dt: plan.h,
     }
 }

@@ -38,10 +38,59 @@ pub struct State<R = f64> {
     /// The window: beads lo .. hi (contacts lo ..= hi).
     pub lo: usize,
     pub hi: usize,
-    /// Scratch: `p` of contacts lo ..= hi at the start of the step being
-    /// taken (for the kink correction, [`Substeps::kicks`]); nothing between
-    /// steps.
-    pub p_start: Vec<R>,
+    /// What a step keeps of its start and its contacts' impulses (the kink
+    /// correction and the local refinement read it); nothing between steps.
+    pub scratch: Scratch<R>,
+    /// Regions redone by the local refinement so far, and their beads
+    /// ([`Refine`]; diagnostics).
+    pub regions: u64,
+    pub region_beads: u64,
+}
+
+/// A step's scratch: its start over the window (contacts lo ..= hi, beads
+/// lo .. hi), and each contact's impulse over the step.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Scratch<R> {
+    /// `p` at the step's start.
+    pub p: Vec<R>,
+    /// `v`, `a` and `x0` at the step's start (with [`Refine`] only).
+    pub v: Vec<R>,
+    pub a: Vec<R>,
+    pub x0: R,
+    /// Σ over the step's kicks of (kick weight)·e_j, plus the kink
+    /// correction's impulse (with [`Refine`] only).
+    pub imp: Vec<R>,
+    /// Contacts near a crossing in this step, in order.
+    pub near: Vec<usize>,
+}
+
+impl<R: Real> Scratch<R> {
+    /// Room for a chain of `n` beads (`refine`: also what the local
+    /// refinement keeps).
+    pub fn new(n: usize, refine: bool) -> Scratch<R> {
+        let z = R::zero();
+        let m = if refine { n + 1 } else { 0 };
+        Scratch {
+            p: vec![z; n + 1],
+            v: vec![z; m],
+            a: vec![z; m],
+            x0: z,
+            imp: vec![z; m],
+            near: Vec::new(),
+        }
+    }
+
+    /// None: for states read back or converted, which take no step.
+    pub fn none() -> Scratch<R> {
+        Scratch {
+            p: Vec::new(),
+            v: Vec::new(),
+            a: Vec::new(),
+            x0: R::zero(),
+            imp: Vec::new(),
+            near: Vec::new(),
+        }
+    }
 }
 
 impl State<f64> {
@@ -65,7 +114,8 @@ impl State<f64> {
 
 impl<R: Real> State<R> {
     /// The chain at rest (or with its initial velocities), forces evaluated.
-    pub fn start(b: &Beads, c: &Consts<R>, weights: &[f64], whole: bool) -> State<R> {
+    /// `refine`: room for the local refinement ([`Substeps::refine`]).
+    pub fn start(b: &Beads, c: &Consts<R>, weights: &[f64], whole: bool, refine: bool) -> State<R> {
         let n = b.n;
         let zero = R::zero();
         let mut s = State {
@@ -77,9 +127,11 @@ impl<R: Real> State<R> {
             x0: zero,
             lo: 0,
             hi: n,
-            p_start: vec![zero; n + 1],
+            scratch: Scratch::new(n, refine),
+            regions: 0,
+            region_beads: 0,
         };
-        forces(c, &mut s, zero, pulse_on(c, zero));
+        forces(c, &mut s, zero, pulse_on(c, zero), None);
         if !whole {
             s.shrink(c, weights.len(), zero);
         }
@@ -103,7 +155,9 @@ impl<R: Real> State<R> {
             x0: self.x0.to64(),
             lo: self.lo,
             hi: self.hi,
-            p_start: Vec::new(),
+            scratch: Scratch::none(),
+            regions: self.regions,
+            region_beads: self.region_beads,
         })
     }
 
@@ -141,14 +195,28 @@ pub fn pulse_on<R: Real>(c: &Consts<R>, t0: R) -> bool {
 }
 
 /// Excess forces of contacts lo ..= hi and accelerations of beads lo .. hi
-/// at time `t` (the pulse's phase; `on`: [`pulse_on`] of the step).
+/// at time `t` (the pulse's phase; `on`: [`pulse_on`] of the step);
+/// `track`: the weight of the kick that follows, each contact's impulse
+/// (`scratch.imp`) then adds weight·e_j.
 #[inline(always)]
-fn forces<R: Real>(c: &Consts<R>, s: &mut State<R>, t: R, on: bool) {
+fn forces<R: Real>(c: &Consts<R>, s: &mut State<R>, t: R, on: bool, track: Option<R>) {
     let (lo, hi) = (s.lo, s.hi);
     let e = &mut s.e[lo..=hi];
     let (k, d0, f0, p) = (&c.k[lo..=hi], &c.d0[lo..=hi], &c.f0[lo..=hi], &s.p[lo..=hi]);
-    for j in 0..e.len() {
-        e[j] = hertz(k[j], d0[j] + p[j]) - f0[j];
+    match track {
+        None => {
+            for j in 0..e.len() {
+                e[j] = hertz(k[j], d0[j] + p[j]) - f0[j];
+            }
+        }
+        Some(kc) => {
+            let imp = &mut s.scratch.imp[lo..=hi];
+            for j in 0..e.len() {
+                let x = hertz(k[j], d0[j] + p[j]) - f0[j];
+                e[j] = x;
+                imp[j] = imp[j] + kc * x;
+            }
+        }
     }
     let a = &mut s.a[lo..hi];
     let im = &c.inv_mass[lo..hi];
@@ -278,11 +346,49 @@ unsafe fn step_avx2<R: Real>(
 /// A step's substeps: the composition's drift weights, and the kick
 /// weights at the drift positions ([`crate::engine::integrate::kick_weights`])
 /// when contacts that open or close in a step get the kink correction
-/// (`kinks`).
+/// (`kinks`), and the local refinement around contacts near a crossing
+/// (`refine`, with `kinks` only).
 #[derive(Clone, Copy, Debug)]
 pub struct Substeps<'a> {
     pub weights: &'a [f64],
     pub kicks: Option<&'a [f64]>,
+    pub refine: Option<Refine>,
+}
+
+/// Beads each side of a contact near a crossing that the local refinement
+/// redoes ([`Refine::reach`]).
+pub const REFINE_REACH: usize = 3;
+/// Finer steps a region is redone in ([`Refine::steps`]; a power of two, so
+/// h/M is exact).
+pub const REFINE_STEPS: usize = 8;
+/// A contact is near a crossing when its smaller |δ| over the step is below
+/// this many times its change |Δδ| ([`Refine::near`]).
+pub const REFINE_NEAR: f64 = 3.0;
+/// Changes of overlap below this fraction of v_s·t_s (the velocity and time
+/// scales) do not count ([`Refine::floor`]): the precursor ahead of a
+/// solitary wave, whose forces are far below any tolerance.
+pub const REFINE_FLOOR: f64 = 5e-8;
+
+/// The local refinement (docs/SPEC.md §9). A fixed step loses accuracy in
+/// the few steps around each contact's crossing of zero overlap, where the
+/// force k·δ^{3/2}⁺ is only C¹ in time (the methods' error then falls as
+/// ~h³ whatever their order). After each step, every contact near a
+/// crossing has the beads within `reach` of it redone as `steps` finer
+/// steps of the same composition (with the kink correction), from the
+/// step's start; a bead just outside such a region follows the cubic
+/// Hermite interpolant of its velocity between its start and end
+/// (its displacement: the interpolant's integral), and its velocity takes
+/// the fine steps' impulse of the boundary contact in place of the coarse
+/// one (momentum stays at round-off). Contacts near a crossing whose
+/// regions would leave fewer than two beads between them share one region,
+/// so regions never touch: the GPU kernel redoes them in parallel.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Refine {
+    pub reach: usize,
+    pub steps: usize,
+    pub near: f64,
+    /// The smallest |Δδ| over a step that counts (m).
+    pub floor: f64,
 }
 
 /// The kink correction of a step of length `h`: a contact whose overlap
@@ -292,43 +398,62 @@ pub struct Substeps<'a> {
 /// ([`crate::engine::integrate::kink_impulse_error`], the cradle engine's
 /// correction), added to its two beads' velocities. Bead by bead (its left
 /// contact's share, then its right one's), as the GPU kernel's invocations
-/// do it.
+/// do it, over beads a .. b, the overlaps at the start in `scratch.p`.
 #[inline(always)]
-fn kinks<R: Real>(c: &Consts<R>, s: &mut State<R>, h: R, w: &[f64], kicks: &[f64]) {
-    // Whether a contact at rest overlap `d0` with stiffness `k` crossed zero
-    // going from `p_start` to `p` (no branch: the scan below vectorises).
-    #[inline(always)]
-    fn crosses<R: Real>(d0: R, k: R, p_start: R, p: R) -> bool {
-        let zero = R::zero();
-        ((d0 + p_start > zero) != (d0 + p > zero)) & (k != zero)
+fn kinks<R: Real>(
+    c: &Consts<R>,
+    s: &mut State<R>,
+    (a, b): (usize, usize),
+    h: R,
+    w: &[f64],
+    kicks: &[f64],
+) {
+    for i in a..b {
+        let (left, right) = (miss(c, s, i, h, w, kicks), miss(c, s, i + 1, h, w, kicks));
+        if let Some(x) = left {
+            s.v[i] = s.v[i] + x * c.inv_mass[i];
+        }
+        if let Some(x) = right {
+            s.v[i] = s.v[i] - x * c.inv_mass[i];
+        }
     }
-    let (lo, hi) = (s.lo, s.hi);
-    let crossed = |j: usize| {
-        crosses(c.d0[j], c.k[j], s.p_start[j], s.p[j])
-            .then_some((c.d0[j] + s.p_start[j], c.d0[j] + s.p[j]))
-    };
-    // Most steps have none: one branch-free pass over the window finds out.
-    let (d0, k) = (&c.d0[lo..=hi], &c.k[lo..=hi]);
-    let (ps, p) = (&s.p_start[lo..=hi], &s.p[lo..=hi]);
-    let mut any = false;
-    for j in 0..d0.len() {
-        any |= crosses(d0[j], k[j], ps[j], p[j]);
-    }
-    if !any {
-        return;
-    }
-    let miss = |j: usize, (d0, d1): (R, R)| {
+}
+
+/// The impulse contact j missed in a step of length `h` (the kink
+/// correction's), if its overlap crossed zero in it.
+#[inline(always)]
+fn miss<R: Real>(
+    c: &Consts<R>,
+    s: &State<R>,
+    j: usize,
+    h: R,
+    w: &[f64],
+    kicks: &[f64],
+) -> Option<R> {
+    let ps = s.scratch.p[j];
+    crosses(c.d0[j], c.k[j], ps, s.p[j]).then(|| {
+        let (d0, d1) = (c.d0[j] + ps, c.d0[j] + s.p[j]);
         crate::engine::integrate::kink_impulse_error(c.k[j], d0, d1, w, kicks) * h
-    };
-    for i in lo..hi {
-        let (left, right) = (crossed(i), crossed(i + 1));
-        if let Some(d) = left {
-            s.v[i] = s.v[i] + miss(i, d) * c.inv_mass[i];
-        }
-        if let Some(d) = right {
-            s.v[i] = s.v[i] - miss(i + 1, d) * c.inv_mass[i];
-        }
-    }
+    })
+}
+
+/// Whether a contact at rest overlap `d0` with stiffness `k` crossed zero
+/// going from `p_start` to `p` (no branch: scans over it vectorise).
+#[inline(always)]
+fn crosses<R: Real>(d0: R, k: R, p_start: R, p: R) -> bool {
+    let zero = R::zero();
+    ((d0 + p_start > zero) != (d0 + p > zero)) & (k != zero)
+}
+
+/// Whether a contact is near a crossing ([`Refine`]): it crossed, or one
+/// end of its step is closed, |Δδ| > floor and min |δ| < near·|Δδ|.
+#[inline(always)]
+fn is_near<R: Real>(d0: R, k: R, p_start: R, p: R, near: R, floor: R) -> bool {
+    let zero = R::zero();
+    let (da, db) = (d0 + p_start, d0 + p);
+    let dd = (p - p_start).abs();
+    let close = (dd > floor) & ((da > zero) | (db > zero)) & (da.abs().min(db.abs()) < near * dd);
+    (((da > zero) != (db > zero)) | close) & (k != zero)
 }
 
 #[inline(always)]
@@ -337,27 +462,264 @@ fn step_portable<R: Real>(c: &Consts<R>, s: &mut State<R>, t0: R, h: R, m: &Subs
     let half = R::of(0.5);
     let mut t = t0;
     let on = pulse_on(c, t0);
+    let refine = m.refine.filter(|_| m.kicks.is_some());
+    let (lo, hi) = (s.lo, s.hi);
+    let c0 = half * R::of(w[0]) * h;
     if m.kicks.is_some() {
-        let (lo, hi) = (s.lo, s.hi);
-        s.p_start[lo..=hi].copy_from_slice(&s.p[lo..=hi]);
+        s.scratch.p[lo..=hi].copy_from_slice(&s.p[lo..=hi]);
     }
-    kick(s, half * R::of(w[0]) * h);
+    if refine.is_some() {
+        let sc = &mut s.scratch;
+        sc.v[lo..hi].copy_from_slice(&s.v[lo..hi]);
+        sc.a[lo..hi].copy_from_slice(&s.a[lo..hi]);
+        sc.x0 = s.x0;
+        for (i, &e) in sc.imp[lo..=hi].iter_mut().zip(&s.e[lo..=hi]) {
+            *i = c0 * e;
+        }
+    }
+    kick(s, c0);
     for (j, &wj) in w.iter().enumerate() {
         let wj = R::of(wj);
         drift(s, wj * h);
         t = t + wj * h;
-        forces(c, s, t, on);
         let k = match w.get(j + 1) {
             Some(&next) => half * (wj + R::of(next)) * h,
             None => half * wj * h,
         };
+        forces(c, s, t, on, refine.map(|_| k));
         kick(s, k);
     }
     if let Some(kicks) = m.kicks {
-        kinks(c, s, h, w, kicks);
+        // Most steps have no crossing: one branch-free pass over the window
+        // finds out.
+        let (d0, kk) = (&c.d0[lo..=hi], &c.k[lo..=hi]);
+        let (ps, p) = (&s.scratch.p[lo..=hi], &s.p[lo..=hi]);
+        let mut any = false;
+        match refine {
+            None => {
+                for j in 0..d0.len() {
+                    any |= crosses(d0[j], kk[j], ps[j], p[j]);
+                }
+            }
+            Some(r) => {
+                let (near, floor) = (R::of(r.near), R::of(r.floor));
+                for j in 0..d0.len() {
+                    any |= is_near(d0[j], kk[j], ps[j], p[j], near, floor);
+                }
+            }
+        }
+        if any {
+            kinks(c, s, (lo, hi), h, w, kicks);
+            if let Some(r) = refine {
+                for j in lo..=hi {
+                    if let Some(x) = miss(c, s, j, h, w, kicks) {
+                        s.scratch.imp[j] = s.scratch.imp[j] + x;
+                    }
+                }
+                refine_near(c, s, (t0, h, t), m, kicks, r);
+            }
+        }
     }
     s.steps += 1;
     if !whole {
         s.shrink(c, w.len(), t0 + h);
+    }
+}
+
+/// The local refinement after a step ([`Refine`]): the contacts near a
+/// crossing, grouped into regions, each redone. `times`: the step's start,
+/// length and last substep's time.
+fn refine_near<R: Real>(
+    c: &Consts<R>,
+    s: &mut State<R>,
+    times: (R, R, R),
+    m: &Substeps,
+    kicks: &[f64],
+    r: Refine,
+) {
+    let (lo, hi) = (s.lo, s.hi);
+    let (nr, floor) = (R::of(r.near), R::of(r.floor));
+    let mut near = std::mem::take(&mut s.scratch.near);
+    near.clear();
+    near.extend((lo..=hi).filter(|&j| is_near(c.d0[j], c.k[j], s.scratch.p[j], s.p[j], nr, floor)));
+    let l = r.reach;
+    let mut k = 0;
+    while k < near.len() {
+        let first = near[k];
+        let mut last = first;
+        k += 1;
+        while k < near.len() && near[k] - last <= 2 * l + 1 {
+            last = near[k];
+            k += 1;
+        }
+        let (a, b) = (first.saturating_sub(l).max(lo), (last + l).min(hi));
+        if b > a {
+            s.regions += 1;
+            s.region_beads += (b - a) as u64;
+            redo(c, s, times, m, kicks, r.steps, (a, b));
+        }
+    }
+    s.scratch.near = near;
+}
+
+/// A bead's displacement since the step's start along the cubic Hermite
+/// interpolant of its velocity, X(θ) = h·θ·(c1 + θ·(c2 + θ·(c3 + θ·c4))),
+/// θ = τ/h (the GPU kernel's `hermite` and `hermite_at`).
+#[derive(Clone, Copy)]
+struct Hermite<R> {
+    c: [R; 4],
+    h: R,
+}
+
+impl<R: Real> Hermite<R> {
+    /// From the velocity and acceleration at the start (`v0`, `a0`) and
+    /// end (`v1`, `a1`) of a step of length `h`.
+    #[inline(always)]
+    fn new(v0: R, a0: R, v1: R, a1: R, h: R) -> Hermite<R> {
+        let (h0, h1) = (h * a0, h * a1);
+        let c3 = (v1 - v0) - (R::of(2.0 / 3.0) * h0 + R::of(1.0 / 3.0) * h1);
+        let c4 = R::of(0.5) * (v0 - v1) + R::of(0.25) * (h0 + h1);
+        Hermite {
+            c: [v0, R::of(0.5) * h0, c3, c4],
+            h,
+        }
+    }
+
+    #[inline(always)]
+    fn at(&self, th: R) -> R {
+        let c = &self.c;
+        self.h * th * (c[0] + th * (c[1] + th * (c[2] + th * c[3])))
+    }
+}
+
+/// Redo beads a .. b (contacts a ..= b) of the step just taken as `mm`
+/// finer steps from the step's start ([`Refine`]), in place; then the
+/// beads just outside take the fine impulse of the boundary contacts and
+/// their accelerations from the new forces.
+fn redo<R: Real>(
+    c: &Consts<R>,
+    s: &mut State<R>,
+    (t0, h, t_end): (R, R, R),
+    m: &Substeps,
+    kicks: &[f64],
+    mm: usize,
+    (a, b): (usize, usize),
+) {
+    let n = s.v.len();
+    let (lo, hi) = (s.lo, s.hi);
+    let zero = R::zero();
+    let half = R::of(0.5);
+    for j in a..=b {
+        s.p[j] = s.scratch.p[j];
+        s.e[j] = hertz(c.k[j], c.d0[j] + s.p[j]) - c.f0[j];
+    }
+    s.v[a..b].copy_from_slice(&s.scratch.v[a..b]);
+    s.a[a..b].copy_from_slice(&s.scratch.a[a..b]);
+    if a == 0 {
+        s.x0 = s.scratch.x0;
+    }
+    let outside = |i: usize| Hermite::new(s.scratch.v[i], s.scratch.a[i], s.v[i], s.a[i], h);
+    let left = (a > lo).then(|| outside(a - 1));
+    let right = (b < hi).then(|| outside(b));
+    let inv_m = R::of(1.0 / mm as f64);
+    let hf = h * inv_m;
+    let w = m.weights;
+    let pulse = c
+        .pulse
+        .as_ref()
+        .filter(|p| pulse_on(c, t0) && (a..b).contains(&p.bead));
+    // The fine steps' impulses of contacts a and b; the outside beads'
+    // displacements so far.
+    let (mut ja, mut jb) = (zero, zero);
+    let (mut xa, mut xb) = (zero, zero);
+    let mut th = zero;
+    for i in 0..mm {
+        s.scratch.p[a..=b].copy_from_slice(&s.p[a..=b]);
+        let mut t = t0 + R::of(i as f64) * hf;
+        let c0 = half * R::of(w[0]) * hf;
+        ja = ja + c0 * s.e[a];
+        jb = jb + c0 * s.e[b];
+        for ii in a..b {
+            s.v[ii] = s.v[ii] + c0 * s.a[ii];
+        }
+        for (j, &wj) in w.iter().enumerate() {
+            let wj = R::of(wj);
+            let dt = wj * hf;
+            th = th + wj * inv_m;
+            // Drift: contacts a ..= b, the outside beads along their
+            // interpolants, walls still.
+            let da = left.map(|q| {
+                let x = q.at(th);
+                let d = x - xa;
+                xa = x;
+                d
+            });
+            let db = right.map(|q| {
+                let x = q.at(th);
+                let d = x - xb;
+                xb = x;
+                d
+            });
+            for jj in a..=b {
+                if jj == 0 {
+                    s.p[0] = s.p[0] - dt * s.v[0];
+                    s.x0 = s.x0 + dt * s.v[0];
+                } else if jj == n {
+                    s.p[n] = s.p[n] + dt * s.v[n - 1];
+                } else if let (true, Some(d)) = (jj == a, da) {
+                    s.p[jj] = s.p[jj] + (d - dt * s.v[jj]);
+                } else if let (true, Some(d)) = (jj == b, db) {
+                    s.p[jj] = s.p[jj] + (dt * s.v[jj - 1] - d);
+                } else {
+                    s.p[jj] = s.p[jj] + dt * (s.v[jj - 1] - s.v[jj]);
+                }
+            }
+            t = t + dt;
+            for jj in a..=b {
+                s.e[jj] = hertz(c.k[jj], c.d0[jj] + s.p[jj]) - c.f0[jj];
+            }
+            for ii in a..b {
+                s.a[ii] = (s.e[ii] - s.e[ii + 1]) * c.inv_mass[ii];
+            }
+            if let Some(pl) = pulse {
+                let f = pl.force * pulse_sin(t, pl.omega);
+                s.a[pl.bead] = s.a[pl.bead] + f * pl.inv_mass;
+            }
+            let k = match w.get(j + 1) {
+                Some(&next) => half * (wj + R::of(next)) * hf,
+                None => half * wj * hf,
+            };
+            ja = ja + k * s.e[a];
+            jb = jb + k * s.e[b];
+            for ii in a..b {
+                s.v[ii] = s.v[ii] + k * s.a[ii];
+            }
+        }
+        kinks(c, s, (a, b), hf, w, kicks);
+        if let Some(x) = miss(c, s, a, hf, w, kicks) {
+            ja = ja + x;
+        }
+        if let Some(x) = miss(c, s, b, hf, w, kicks) {
+            jb = jb + x;
+        }
+    }
+    // The outside beads: the fine impulse of their boundary contact in
+    // place of the coarse one, and their accelerations from the new forces
+    // (the pulse's at the step's last substep, as the step had it).
+    let fix = |s: &mut State<R>, i: usize, dv: R| {
+        s.v[i] = s.v[i] + dv * c.inv_mass[i];
+        let mut acc = (s.e[i] - s.e[i + 1]) * c.inv_mass[i];
+        if let Some(pl) = c.pulse.as_ref().filter(|p| p.bead == i && pulse_on(c, t0)) {
+            acc = acc + pl.force * pulse_sin(t_end, pl.omega) * pl.inv_mass;
+        }
+        s.a[i] = acc;
+    };
+    if left.is_some() {
+        let dv = s.scratch.imp[a] - ja;
+        fix(s, a - 1, dv);
+    }
+    if right.is_some() {
+        let dv = jb - s.scratch.imp[b];
+        fix(s, b, dv);
     }
 }
