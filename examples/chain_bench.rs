@@ -126,18 +126,34 @@ fn main() {
     }
 
     println!("\n## Cost per bead-step (whole chain moving: precompressed, a pulse at bead 0 and a striker at the far end; kahanli6, 20,000 steps)\n");
-    println!("| beads | time (s) | ns per bead-step | relative to 100 |");
-    println!("|---|---|---|---|");
-    let mut base = 0.0;
-    for n in [100, 1000, 10000] {
+    println!("| beads | step | local refinement | regions a step | time (s) | ns per bead-step | relative to 100 |");
+    println!("|---|---|---|---|---|---|---|");
+    let chain = |n: usize, dt: f64| {
         let mut v = vec!["0.0".to_string(); n];
         v[n - 1] = "-0.01".into();
-        let text = format!("balls = {n}\nradius = 0.005\nvelocity = [{}]\n[walls]\nleft = true\nright = true\nprecompression = 10.0\n[pulse]\nbead = 0\nforce = 1.0\nduration = 1e-5\n[solver]\ndt = 5e-8\n[stop]\nduration = 1e-3\n", v.join(","));
-        let (_, o, secs) = solve(&text, None, None);
-        let ns = secs * 1e9 / (o.steps as f64 * n as f64);
-        if n == 100 {
-            base = ns;
+        format!("balls = {n}\nradius = 0.005\nvelocity = [{}]\n[walls]\nleft = true\nright = true\nprecompression = 10.0\n[pulse]\nbead = 0\nforce = 1.0\nduration = 1e-5\n[solver]\ndt = {dt:e}\n[stop]\nduration = {:e}\n", v.join(","), 2e4 * dt)
+    };
+    // The given step, and one of t_s/100 (the refinement on: REFINE_FROM).
+    let ts =
+        Beads::from_scene(&Scene::from_toml_str("bench", &chain(100, 5e-8)).unwrap()).time_scale();
+    for (label, dt) in [("5e-8 s", 5e-8), ("t_s/100", ts / 100.0)] {
+        let mut base = 0.0;
+        for n in [100, 1000, 10000] {
+            let (_, o, secs) = solve(&chain(n, dt), None, None);
+            let ns = secs * 1e9 / (o.steps as f64 * n as f64);
+            if n == 100 {
+                base = ns;
+            }
+            let on = if dt <= ts / granular::REFINE_FROM {
+                "on"
+            } else {
+                "off"
+            };
+            println!(
+                "| {n} | {label} | {on} | {:.3} | {secs:.3} | {ns:.2} | {:.2} |",
+                o.regions as f64 / o.steps as f64,
+                ns / base
+            );
         }
-        println!("| {n} | {secs:.3} | {ns:.2} | {:.2} |", ns / base);
     }
 }

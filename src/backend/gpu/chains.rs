@@ -106,7 +106,8 @@ pub struct ChainHead {
     /// The local refinement's reach and finer steps (`step::Refine`).
     pub reach: u32,
     pub msteps: u32,
-    /// Regions redone and their beads so far (`ChainOutcome::regions`).
+    /// Regions redone and their beads so far (`ChainOutcome::regions`;
+    /// 32 bits: they wrap past 4·10^9, region_beads after ~7·10^8 regions).
     pub regions: u32,
     pub region_beads: u32,
 }
