@@ -293,21 +293,72 @@ fn is_near(j: u32) -> bool {
     return ((r_gt(da, zero) != r_gt(db, zero)) || close) && r_nz(R[H.o_k + j]);
 }
 
-// step::Hermite::new of bead i: [c1, c2, c3, c4].
-fn hermite(i: u32, h: real) -> array<real, 4> {
-    let v0 = R[H.o_vs + i];
-    let a0 = R[H.o_as + i];
-    let v1 = R[H.o_v + i];
-    let a1 = R[H.o_a + i];
-    let c3 = r_sub(r_sub(v1, v0), r_mul(h, r_add(r_mul(TWO_THIRDS, a0), r_mul(ONE_THIRD, a1))));
-    let c4 = r_add(r_mul(real(0.5), r_sub(v0, v1)), r_mul(real(0.25), r_mul(h, r_add(a0, a1))));
-    return array<real, 4>(v0, r_mul(real(0.5), r_mul(h, a0)), c3, c4);
+// step::bead_rates: the velocity of bead k at the step's start (the
+// scratch, inside the window) or its end.
+fn v_at(k: u32, start: bool, lo: u32, hi: u32) -> real {
+    if (start && k >= lo && k < hi) {
+        return R[H.o_vs + k];
+    }
+    return R[H.o_v + k];
+}
+
+// step::bead_rates' force rate of contact j: 1.5·k·√δ·δ' (δ > 0).
+fn rate_at(j: u32, start: bool, lo: u32, hi: u32) -> real {
+    var p = R[H.o_p + j];
+    if (start) {
+        p = R[H.o_ps + j];
+    }
+    let d = r_add(R[H.o_d0 + j], p);
+    if (!r_gt(d, real(0.0))) {
+        return real(0.0);
+    }
+    var vl = real(0.0);
+    if (j > 0u) {
+        vl = v_at(j - 1u, start, lo, hi);
+    }
+    var vr = real(0.0);
+    if (j < H.n) {
+        vr = v_at(j, start, lo, hi);
+    }
+    return r_mul(r_mul(r_mul(real(1.5), R[H.o_k + j]), r_sqrt(d)), r_sub(vl, vr));
+}
+
+// step::bead_rates: (v, a, jerk) of bead i at the step's start or end.
+fn bead_rates(i: u32, start: bool, t: real, on: bool, lo: u32, hi: u32) -> array<real, 3> {
+    var jerk = r_mul(r_sub(rate_at(i, start, lo, hi), rate_at(i + 1u, start, lo, hi)), R[H.o_im + i]);
+    if (on && H.pulse_bead == i) {
+        let w = R[H.sc + SC_OMEGA];
+        jerk = r_add(jerk, r_mul(r_mul(r_mul(R[H.sc + SC_PULSE_FORCE], w), pulse_cos(t, w)), R[H.sc + SC_PULSE_IM]));
+    }
+    var acc = R[H.o_a + i];
+    if (start && i >= lo && i < hi) {
+        acc = R[H.o_as + i];
+    }
+    return array<real, 3>(v_at(i, start, lo, hi), acc, jerk);
+}
+
+// step::Hermite::new: [d0 … d5] of the quintic from (v, a, jerk) at both ends.
+fn hermite(r0: array<real, 3>, r1: array<real, 3>, h: real) -> array<real, 6> {
+    let hh0 = r_mul(h, r_mul(h, r0[2]));
+    let c1 = r_mul(h, r0[1]);
+    let c2 = r_mul(real(0.5), hh0);
+    let aa = r_sub(r1[0], r_add(r_add(r0[0], c1), c2));
+    let bb = r_sub(r_mul(h, r1[1]), r_add(c1, r_mul(real(2.0), c2)));
+    let cc = r_sub(r_mul(h, r_mul(h, r1[2])), r_mul(real(2.0), c2));
+    let c3 = r_add(r_sub(r_mul(real(10.0), aa), r_mul(real(4.0), bb)), r_mul(real(0.5), cc));
+    let c4 = r_sub(r_sub(r_mul(real(7.0), bb), r_mul(real(15.0), aa)), cc);
+    let c5 = r_add(r_sub(r_mul(real(6.0), aa), r_mul(real(3.0), bb)), r_mul(real(0.5), cc));
+    return array<real, 6>(r0[0], r_mul(real(0.5), c1), r_mul(ONE_SIXTH, hh0), r_mul(real(0.25), c3), r_mul(real(0.2), c4), r_mul(ONE_SIXTH, c5));
 }
 
 // step::Hermite::at.
-fn hermite_at(c: array<real, 4>, h: real, th: real) -> real {
-    let poly = r_add(c[0], r_mul(th, r_add(c[1], r_mul(th, r_add(c[2], r_mul(th, c[3]))))));
-    return r_mul(r_mul(h, th), poly);
+fn hermite_at(d: array<real, 6>, h: real, th: real) -> real {
+    var p = r_add(d[4], r_mul(th, d[5]));
+    p = r_add(d[3], r_mul(th, p));
+    p = r_add(d[2], r_mul(th, p));
+    p = r_add(d[1], r_mul(th, p));
+    p = r_add(d[0], r_mul(th, p));
+    return r_mul(r_mul(h, th), p);
 }
 
 // step::redo: beads a .. b (contacts a ..= b) of the step from t0 by h
@@ -316,6 +367,18 @@ fn redo(a: u32, b: u32, t0: real, h: real, t_end: real, lo: u32, hi: u32) {
     let n = H.n;
     let zero = real(0.0);
     let half = real(0.5);
+    // The outside beads' interpolants, from the step's end as it was.
+    let left = a > lo;
+    let right = b < hi;
+    let on = (H.flags & F_PULSE) != 0u && r_lt(t0, R[H.sc + SC_PULSE_DURATION]);
+    var ql = array<real, 6>(zero, zero, zero, zero, zero, zero);
+    var qr = array<real, 6>(zero, zero, zero, zero, zero, zero);
+    if (left) {
+        ql = hermite(bead_rates(a - 1u, true, t0, on, lo, hi), bead_rates(a - 1u, false, t_end, on, lo, hi), h);
+    }
+    if (right) {
+        qr = hermite(bead_rates(b, true, t0, on, lo, hi), bead_rates(b, false, t_end, on, lo, hi), h);
+    }
     for (var j = a; j <= b; j++) {
         R[H.o_p + j] = R[H.o_ps + j];
         R[H.o_e + j] = r_sub(hertz(R[H.o_k + j], r_add(R[H.o_d0 + j], R[H.o_p + j])), R[H.o_f0 + j]);
@@ -323,16 +386,6 @@ fn redo(a: u32, b: u32, t0: real, h: real, t_end: real, lo: u32, hi: u32) {
     for (var i = a; i < b; i++) {
         R[H.o_v + i] = R[H.o_vs + i];
         R[H.o_a + i] = R[H.o_as + i];
-    }
-    let left = a > lo;
-    let right = b < hi;
-    var ql = array<real, 4>(zero, zero, zero, zero);
-    var qr = array<real, 4>(zero, zero, zero, zero);
-    if (left) {
-        ql = hermite(a - 1u, h);
-    }
-    if (right) {
-        qr = hermite(b, h);
     }
     let inv_m = R[H.sc + SC_INV_M];
     let hf = r_mul(h, inv_m);
@@ -450,7 +503,7 @@ fn refine_near(lo: u32, hi: u32, t0: real, h: real, t_end: real) {
     }
     storageBarrier();
     let l = H.reach;
-    let gap = 2u * l + 1u;
+    let gap = 2u * l + 2u;
     for (var j = lo + me; j <= hi; j += WG) {
         if (!r_nz(R[H.o_fl + j])) {
             continue;

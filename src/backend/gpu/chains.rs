@@ -156,8 +156,7 @@ pub fn chain_shader(precision: Precision) -> String {
         ("ALMOST_ONE", 1.0 - 1e-12),
         ("HALF_PI", std::f64::consts::FRAC_PI_2),
         ("PI", std::f64::consts::PI),
-        ("TWO_THIRDS", 2.0 / 3.0),
-        ("ONE_THIRD", 1.0 / 3.0),
+        ("ONE_SIXTH", 1.0 / 6.0),
     ];
     for (name, x) in reals {
         let _ = writeln!(s, "const {name}: real = {};", real_literal(x, precision));

@@ -448,9 +448,9 @@ pub fn chain_error_model(m: crate::scene::Method) -> (f64, f64) {
 /// Steps per time scale from which the local refinement is on
 /// ([`step::Refine`]): at coarser steps the decaying tail behind a solitary
 /// wave has contacts near a crossing in every step (a region of 6–20 beads
-/// redone each step, 3–5× the step's cost) and the refinement does not
-/// lower the error; from here on regions are rare (< 0.1 per step) and the
-/// error falls at the method's order.
+/// redone each step; with the first, cubic, boundary interpolant 3–5× the
+/// step's cost for no gain); from here on regions are rare on uniform
+/// chains (< 0.1 per step) and the error falls at the method's order.
 pub const REFINE_FROM: f64 = 90.0;
 
 /// [`chain_error_model`] with the local refinement (h ≤ t_s/[`REFINE_FROM`];
@@ -466,8 +466,8 @@ pub fn refined_error_model(m: crate::scene::Method) -> Option<(f64, f64)> {
         // spikes at some steps (as built too), which leave a refined fit at
         // q ~ 1: both run without (results/chain_error_fit.md).
         Verlet | Yoshida4 | Yoshida6 => None,
-        Suzuki4 => Some((0.00179, 2.70)),
-        KahanLi6 => Some((3850.0, 6.58)),
+        Suzuki4 => Some((0.00193, 2.71)),
+        KahanLi6 => Some((13.0, 6.20)),
     }
 }
 
