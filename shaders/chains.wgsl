@@ -173,6 +173,15 @@ fn pulse_cos(t: real, omega: real) -> real {
 
 // ---- the step (step.rs): every invocation, its beads and contacts ----
 
+// step::kick_weight: the kick after drift j of a step of length h (half of
+// drift j's weight and half of the next one's; the last, half of its own).
+fn kick_weight(j: u32, h: real) -> real {
+    if (j + 1u < H.stages) {
+        return r_mul(r_mul(real(0.5), r_add(wts[j], wts[j + 1u])), h);
+    }
+    return r_mul(r_mul(real(0.5), wts[j]), h);
+}
+
 // v_i += c·a_i, beads lo .. hi.
 fn kick(lo: u32, hi: u32, c: real) {
     for (var i = lo + me; i < hi; i += WG) {
@@ -390,10 +399,9 @@ fn redo(a: u32, b: u32, t0: real, h: real, t_end: real, lo: u32, hi: u32) {
     let inv_m = R[H.sc + SC_INV_M];
     let hf = r_mul(h, inv_m);
     let s = H.stages;
-    let pdur = R[H.sc + SC_PULSE_DURATION];
     let pforce = R[H.sc + SC_PULSE_FORCE];
     let omega = R[H.sc + SC_OMEGA];
-    let pulse = (H.flags & F_PULSE) != 0u && r_lt(t0, pdur) && H.pulse_bead >= a && H.pulse_bead < b;
+    let pulse = on && H.pulse_bead >= a && H.pulse_bead < b;
     var ja = zero;
     var jb = zero;
     var xa = zero;
@@ -451,10 +459,7 @@ fn redo(a: u32, b: u32, t0: real, h: real, t_end: real, lo: u32, hi: u32) {
                 let fp = r_mul(pforce, pulse_sin(t, omega));
                 R[H.o_a + H.pulse_bead] = r_add(R[H.o_a + H.pulse_bead], r_mul(fp, R[H.sc + SC_PULSE_IM]));
             }
-            var kc = r_mul(r_mul(half, wj), hf);
-            if (k + 1u < s) {
-                kc = r_mul(r_mul(half, r_add(wj, wts[k + 1u])), hf);
-            }
+            let kc = kick_weight(k, hf);
             ja = r_add(ja, r_mul(kc, R[H.o_e + a]));
             jb = r_add(jb, r_mul(kc, R[H.o_e + b]));
             for (var i = a; i < b; i++) {
@@ -472,19 +477,19 @@ fn redo(a: u32, b: u32, t0: real, h: real, t_end: real, lo: u32, hi: u32) {
         }
     }
     if (left) {
-        fix_outside(a - 1u, r_sub(R[H.o_imp + a], ja), t0, t_end);
+        fix_outside(a - 1u, r_sub(R[H.o_imp + a], ja), on, t_end);
     }
     if (right) {
-        fix_outside(b, r_sub(jb, R[H.o_imp + b]), t0, t_end);
+        fix_outside(b, r_sub(jb, R[H.o_imp + b]), on, t_end);
     }
 }
 
 // step::redo's last part for an outside bead i: the impulse dv, then its
 // acceleration from the new forces.
-fn fix_outside(i: u32, dv: real, t0: real, t_end: real) {
+fn fix_outside(i: u32, dv: real, on: bool, t_end: real) {
     R[H.o_v + i] = r_add(R[H.o_v + i], r_mul(dv, R[H.o_im + i]));
     var acc = r_mul(r_sub(R[H.o_e + i], R[H.o_e + i + 1u]), R[H.o_im + i]);
-    if ((H.flags & F_PULSE) != 0u && H.pulse_bead == i && r_lt(t0, R[H.sc + SC_PULSE_DURATION])) {
+    if (on && H.pulse_bead == i) {
         let w = R[H.sc + SC_OMEGA];
         acc = r_add(acc, r_mul(r_mul(R[H.sc + SC_PULSE_FORCE], pulse_sin(t_end, w)), R[H.sc + SC_PULSE_IM]));
     }
@@ -576,10 +581,7 @@ fn step(st: Step) {
         drift(lo, hi, r_mul(wj, h));
         t = r_add(t, r_mul(wj, h));
         storageBarrier();
-        var c = r_mul(r_mul(real(0.5), wj), h);
-        if (j + 1u < s) {
-            c = r_mul(r_mul(real(0.5), r_add(wj, wts[j + 1u])), h);
-        }
+        let c = kick_weight(j, h);
         excess_forces(lo, hi, refine, c);
         storageBarrier();
         // step::pulse_on: by the step's start, not the substep's time.

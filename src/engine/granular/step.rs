@@ -375,9 +375,10 @@ pub const REFINE_FLOOR: f64 = 5e-8;
 /// ~h³ whatever their order). After each step, every contact near a
 /// crossing has the beads within `reach` of it redone as `steps` finer
 /// steps of the same composition (with the kink correction), from the
-/// step's start; a bead just outside such a region follows the cubic
-/// Hermite interpolant of its velocity between its start and end
-/// (its displacement: the interpolant's integral), and its velocity takes
+/// step's start; a bead just outside such a region follows the quintic
+/// Hermite interpolant of its velocity between its start and end (its
+/// velocity, acceleration and jerk there; its displacement: the
+/// interpolant's integral), and its velocity takes
 /// the fine steps' impulse of the boundary contact in place of the coarse
 /// one (momentum stays at round-off). Contacts near a crossing whose
 /// regions would leave fewer than three beads between them share one
@@ -458,6 +459,18 @@ fn is_near<R: Real>(d0: R, k: R, p_start: R, p: R, near: R, floor: R) -> bool {
     (((da > zero) != (db > zero)) | close) & (k != zero)
 }
 
+/// The kick after drift j of a step of length `h` with drift weights `w`:
+/// half of drift j's and half of the next one's (the kicks between
+/// substeps merged), the last one half of its own.
+#[inline(always)]
+fn kick_weight<R: Real>(w: &[f64], j: usize, h: R) -> R {
+    let (half, wj) = (R::of(0.5), R::of(w[j]));
+    match w.get(j + 1) {
+        Some(&next) => half * (wj + R::of(next)) * h,
+        None => half * wj * h,
+    }
+}
+
 #[inline(always)]
 fn step_portable<R: Real>(c: &Consts<R>, s: &mut State<R>, t0: R, h: R, m: &Substeps, whole: bool) {
     let w = m.weights;
@@ -484,10 +497,7 @@ fn step_portable<R: Real>(c: &Consts<R>, s: &mut State<R>, t0: R, h: R, m: &Subs
         let wj = R::of(wj);
         drift(s, wj * h);
         t = t + wj * h;
-        let k = match w.get(j + 1) {
-            Some(&next) => half * (wj + R::of(next)) * h,
-            None => half * wj * h,
-        };
+        let k = kick_weight(w, j, h);
         forces(c, s, t, on, refine.map(|_| k));
         kick(s, k);
     }
@@ -691,10 +701,7 @@ fn redo<R: Real>(
     let inv_m = R::of(1.0 / mm as f64);
     let hf = h * inv_m;
     let w = m.weights;
-    let pulse = c
-        .pulse
-        .as_ref()
-        .filter(|p| pulse_on(c, t0) && (a..b).contains(&p.bead));
+    let pulse = c.pulse.as_ref().filter(|p| on && (a..b).contains(&p.bead));
     // The fine steps' impulses of contacts a and b; the outside beads'
     // displacements so far.
     let (mut ja, mut jb) = (zero, zero);
@@ -752,10 +759,7 @@ fn redo<R: Real>(
                 let f = pl.force * pulse_sin(t, pl.omega);
                 s.a[pl.bead] = s.a[pl.bead] + f * pl.inv_mass;
             }
-            let k = match w.get(j + 1) {
-                Some(&next) => half * (wj + R::of(next)) * hf,
-                None => half * wj * hf,
-            };
+            let k = kick_weight(w, j, hf);
             ja = ja + k * s.e[a];
             jb = jb + k * s.e[b];
             for ii in a..b {
@@ -776,7 +780,7 @@ fn redo<R: Real>(
     let fix = |s: &mut State<R>, i: usize, dv: R| {
         s.v[i] = s.v[i] + dv * c.inv_mass[i];
         let mut acc = (s.e[i] - s.e[i + 1]) * c.inv_mass[i];
-        if let Some(pl) = c.pulse.as_ref().filter(|p| p.bead == i && pulse_on(c, t0)) {
+        if let Some(pl) = c.pulse.as_ref().filter(|p| on && p.bead == i) {
             acc = acc + pl.force * pulse_sin(t_end, pl.omega) * pl.inv_mass;
         }
         s.a[i] = acc;
