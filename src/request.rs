@@ -243,14 +243,10 @@ impl SweepRequest {
         let precision = solver.precision;
         if sweep.chains.is_some() {
             granular::check_solver(&solver)?;
-            if settings.error_estimate {
-                return Err(flag(
-                    "--error-estimate",
-                    "(given)",
-                    "a sweep of cradles: a granular chain's step is chosen from the tolerance by its fitted error model (docs/SPEC.md §9); run the sweep again at a tighter tolerance to see the error",
-                ));
-            }
         }
+        // Chains always carry their error estimate (docs/SPEC.md §9): the
+        // flag is the cradles' (and part of the fingerprint only for them).
+        let error_estimate = settings.error_estimate && sweep.chains.is_none();
         Ok(SweepRequest {
             sweep,
             out,
@@ -260,7 +256,7 @@ impl SweepRequest {
             resume: settings.resume,
             shard,
             threads,
-            error_estimate: settings.error_estimate,
+            error_estimate,
             overrides,
             precision,
         })
@@ -526,19 +522,40 @@ impl RunRequest {
         };
         let every = self.trace.as_ref().map(|t| t.1);
         let plan = granular::plan(beads, &self.solver, every);
-        Ok(match &self.trace {
-            None => granular::run(beads, &plan, &mut granular::NoRows),
-            // Written beside the path and published whole (a kill or a
-            // full disk leaves the previous trace, never a cut-off one).
-            Some((path, _)) => crate::output::publish::write_alone(path, |w| {
-                let mut tw =
-                    crate::output::trace::ChainTraceWriter::new(w, beads, self.trace_beads.clone())
-                        .with_context(|| format!("writing {}", path.display()))?;
-                let o = granular::run(beads, &plan, &mut tw);
-                tw.finish()
+        // Under the error control (docs/SPEC.md §9), on this thread's CPU.
+        let job = crate::backend::ChainJob {
+            beads: beads.clone(),
+            plan: plan.clone(),
+        };
+        let o = crate::backend::run_chains_controlled(&crate::backend::cpu::Cpu, 1, &|_| {
+            Ok(Some(job.clone()))
+        })?
+        .remove(0);
+        let Some((path, _)) = &self.trace else {
+            return Ok(o);
+        };
+        // The trace is the reported run's: that run again, rows written
+        // (the same plan, so the same bits).
+        let plan = if o.dt == plan.h {
+            plan
+        } else {
+            plan.rerun(beads, o.dt, o.t_end, plan.refine.is_some())
+        };
+        // Written beside the path and published whole (a kill or a
+        // full disk leaves the previous trace, never a cut-off one).
+        let traced = crate::output::publish::write_alone(path, |w| {
+            let mut tw =
+                crate::output::trace::ChainTraceWriter::new(w, beads, self.trace_beads.clone())
                     .with_context(|| format!("writing {}", path.display()))?;
-                Ok(o)
-            })?,
+            let o = granular::run(beads, &plan, &mut tw);
+            tw.finish()
+                .with_context(|| format!("writing {}", path.display()))?;
+            Ok(o)
+        })?;
+        Ok(ChainOutcome {
+            status: o.status,
+            error_estimate: o.error_estimate,
+            ..traced
         })
     }
 

@@ -1137,3 +1137,62 @@ fn gpu_chain_kernel_gives_the_cpus_chain_outcomes() {
         );
     }
 }
+
+/// The error control (docs/SPEC.md §9, "Error control") on both backends:
+/// the first runs, their twins and the reruns at finer steps are the same
+/// plans, so the rows — values, estimates and verdicts — are the same bits
+/// on lavapipe: a dimer R 5 / 1.9 mm against a wall at tolerance 1e-9 (the
+/// local refinement on in the run, off in its twin) and at 1e-4 (reruns),
+/// a struck uniform chain, and a pulse. (Not yet the 100-bead
+/// dimer at 1e-9, nor a free dimer whose light beads rattle: with regions
+/// in most steps the kernel's refinement differs from the CPU's in the
+/// last bits of tail beads — 2e-19 m/s at bead 41 of a 60-bead uniform
+/// chain against a wall at 1e-9, from a step between 2000 and 2018 —
+/// in plain runs too: a difference that predates the error control, open
+/// in #43's notes.)
+#[test]
+fn gpu_error_control_gives_the_cpus_rows() {
+    use hertz_cradle::backend::{run_chains_controlled, ChainJob};
+    use hertz_cradle::engine::granular::{self, Beads};
+    let Some(g) = gpu() else { return };
+    let dimer = "balls = 20\nradius = 0.005\n[pattern]\nradius = [0.005, 0.0019]\n[walls]\nright = true\n[launch]\nballs = 1\nvelocity = 0.1\n[probes]\nbeads = [5, 15]\n";
+    let scenes = [
+        (dimer.to_string(), 1e-9),
+        (format!("{dimer}[stop]\nduration = 1.5e-3\n"), 1e-4),
+        (
+            "balls = 40\nradius = 0.005\n[launch]\nballs = 1\nvelocity = 0.1\n[probes]\nbeads = [10, 30]\n".to_string(),
+            1e-8,
+        ),
+        (
+            "balls = 40\nradius = 0.005\n[walls]\nleft = true\nright = true\n[pulse]\nbead = 0\nforce = 1.0\nduration = 4e-5\n[probes]\nbeads = [5, 35]\n[stop]\nduration = 3e-4\n".to_string(),
+            1e-6,
+        ),
+    ];
+    let jobs: Vec<Option<ChainJob>> = scenes
+        .iter()
+        .map(|(text, tol)| {
+            let s = Scene::from_toml_str("chain", text).unwrap_or_else(|e| panic!("{e}\n{text}"));
+            let o = Overrides {
+                tolerance: Some(*tol),
+                ..Default::default()
+            };
+            let beads = Beads::from_scene(&s);
+            let plan = granular::plan(&beads, &Solver::resolve(&s, &o).unwrap(), None);
+            Some(ChainJob { beads, plan })
+        })
+        .collect();
+    let source = |k: usize| Ok(jobs[k].clone());
+    let cpu = run_chains_controlled(&Cpu, jobs.len(), &source).unwrap();
+    let gpu = run_chains_controlled(g, jobs.len(), &source).unwrap();
+    for (k, (c, d)) in cpu.iter().zip(&gpu).enumerate() {
+        assert_eq!(format!("{c:?}"), format!("{d:?}"), "chain {k}");
+        assert!(c.error_estimate.is_finite(), "chain {k}: {c:?}");
+    }
+    // The refinement ran in the first chain's reported run; some chain was
+    // rerun at a finer step than its first guess.
+    assert!(cpu[0].refined && cpu[0].regions > 0);
+    let reruns = (0..jobs.len())
+        .filter(|&k| cpu[k].dt < jobs[k].as_ref().unwrap().plan.h)
+        .count();
+    assert!(reruns > 0);
+}

@@ -486,6 +486,7 @@ fn a_granular_chain_runs_with_its_probes_walls_and_record() {
         "wall_right_peak_force",
         "energy_transmitted",
         "fragments",
+        "error_estimate",
     ] {
         assert!(h.contains(&col.to_string()), "{col} missing from {h:?}");
     }
@@ -500,6 +501,10 @@ fn a_granular_chain_runs_with_its_probes_walls_and_record() {
     };
     // The pulse reached the wall, which pushed back.
     assert!(col("wall_right_peak_force") > 1.0);
+    // Every chain row carries its error estimate (docs/SPEC.md §9, "Error
+    // control"): an `ok` row's is within the tolerance (the default 1e-6).
+    let est = col("error_estimate");
+    assert!(est > 0.0 && est <= 1e-6, "{est:e}");
     assert!(col("arrival_250") > col("arrival_50"));
     // In df64 (pairs of f32, for GPUs without fast f64) the same chain
     // gives f64's outcomes to its 48 bits.
@@ -605,16 +610,33 @@ fn a_granular_chain_runs_with_its_probes_walls_and_record() {
     );
     let o = dir.path().join("o.csv");
     let o = o.to_str().unwrap();
-    for (flags, says) in [
-        (&["--error-estimate"][..], "--error-estimate"),
-        (&["--precision", "f32"][..], "f64 or df64"),
-    ] {
-        let mut args = vec!["sweep", &sweep, "--out", o];
-        args.extend_from_slice(flags);
-        let e = bad_input(&args);
-        assert!(e.contains(says), "{flags:?}: {e}");
-    }
+    let e = bad_input(&["sweep", &sweep, "--out", o, "--precision", "f32"]);
+    assert!(e.contains("f64 or df64"), "{e}");
     assert!(!std::path::Path::new(o).exists());
+    // --error-estimate is accepted on chains and changes nothing: every
+    // chain row has its estimate.
+    let o2 = dir.path().join("o2.csv");
+    success(&["sweep", &sweep, "--out", o, "--threads", "1"]);
+    success(&[
+        "sweep",
+        &sweep,
+        "--out",
+        o2.to_str().unwrap(),
+        "--threads",
+        "1",
+        "--error-estimate",
+    ]);
+    let (a, b) = (std::fs::read(o).unwrap(), std::fs::read(&o2).unwrap());
+    assert_eq!(a, b);
+    let mut r = csv::Reader::from_reader(a.as_slice());
+    let h: Vec<String> = r.headers().unwrap().iter().map(String::from).collect();
+    let at = h.iter().position(|c| c == "error_estimate").unwrap();
+    for row in r.records() {
+        let row = row.unwrap();
+        assert_eq!(&row[h.iter().position(|c| c == "status").unwrap()], "ok");
+        assert!(row[at].parse::<f64>().unwrap() <= 1e-6, "{row:?}");
+    }
+    std::fs::remove_file(o).unwrap();
     // A chain whose step underflows (a striker at 1e300 m/s) never advances:
     // `run` refuses it, a sweep makes it an `invalid` row at once (it used to
     // run 5e7 steps of zero length to the step cap).

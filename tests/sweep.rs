@@ -1116,7 +1116,7 @@ values = [0.003, 0.004]
 #[test]
 fn a_sweep_of_chains_writes_each_chains_own_run() {
     use hertz_cradle::backend::BackendChoice;
-    use hertz_cradle::engine::granular::{self, Beads, NoRows};
+    use hertz_cradle::engine::granular::{self, Beads};
     use hertz_cradle::engine::{Overrides, Solver};
     use hertz_cradle::output::chain_row;
     use hertz_cradle::{Hooks, SweepRequest, SweepRow, SweepSettings};
@@ -1170,11 +1170,23 @@ fn a_sweep_of_chains_writes_each_chains_own_run() {
         let f: Vec<&str> = line.split(',').collect();
         let id: u64 = f[0].parse().unwrap();
         assert_eq!(typed.id, id);
-        // The row is the chain engine's run of scene `id`, field for field.
+        // The row is the chain engine's run of scene `id` under the error
+        // control (docs/SPEC.md §9), field for field.
         let scene = req.sweep.scene(id).unwrap();
         let beads = Beads::from_scene(&scene);
         let solver = Solver::resolve(&scene, &Overrides::default()).unwrap();
-        let o = granular::run(&beads, &granular::plan(&beads, &solver, None), &mut NoRows);
+        let job = hertz_cradle::backend::ChainJob {
+            beads: beads.clone(),
+            plan: granular::plan(&beads, &solver, None),
+        };
+        let o = hertz_cradle::backend::run_chains_controlled(
+            &hertz_cradle::backend::cpu::Cpu,
+            1,
+            &|_| Ok(Some(job.clone())),
+        )
+        .unwrap()
+        .remove(0);
+        assert!(o.error_estimate.is_finite());
         assert_eq!(f[3..], chain_row::fields(&beads, &o)[..], "row {id}");
         assert_eq!(typed.outcome.chain().unwrap().steps, o.steps);
         // The axes took effect: the walls carry the precompression swept,

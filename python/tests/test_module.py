@@ -157,6 +157,8 @@ def test_a_granular_chain_runs_as_cradle_run_does(tmp_path):
         elif k != "status":
             assert got[k] == float(v), k
     assert got["arrival_80"] > got["arrival_20"] > 0
+    # Every chain row carries its error estimate, within the tolerance when ok.
+    assert 0 < got["error_estimate"] <= 1e-6
     # The [record] beads' histories as a Table.
     out, trace = hc.run(str(scene), trace=True)
     # (the step divides the trace's spacing: the same run to the tolerance)

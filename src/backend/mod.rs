@@ -158,6 +158,103 @@ pub fn run_with_estimate(
     Ok(out)
 }
 
+/// Run `n` granular chains under the error control (docs/SPEC.md §9,
+/// [`crate::engine::granular::control`]): each `ok` run, then its twin
+/// (the same chain to the same end at [`crate::engine::granular::control::TWIN_RATIO`] times its
+/// step), then, for chains under a tolerance whose estimate is above it,
+/// reruns at finer steps, each checked against the run before it. Each
+/// pass is one `run_chains` call of the backend over the chains that need
+/// it (the others are skipped as `None`), so both backends run the same
+/// plans and give the same rows. Each outcome is the last (finest) run's,
+/// with its `error_estimate`, and status `inaccurate` or `sensitive` where
+/// the estimate stayed above the tolerance.
+pub fn run_chains_controlled(
+    backend: &dyn Backend,
+    n: usize,
+    job: ChainSource,
+) -> anyhow::Result<Vec<ChainOutcome>> {
+    use crate::engine::granular::control;
+    let mut out = backend.run_chains(n, job)?;
+    // Per chain under control: the last run's step, the differences of
+    // its pairs so far, and whether it may be refined further.
+    struct Track {
+        h: f64,
+        diffs: Vec<f64>,
+        open: bool,
+        /// The order of the last pair's estimate.
+        q: f64,
+    }
+    let mut track: Vec<Option<Track>> = out
+        .iter()
+        .map(|o| {
+            (o.status == Status::Ok).then(|| Track {
+                h: o.dt,
+                diffs: vec![],
+                open: true,
+                q: control::ESTIMATE_ORDER,
+            })
+        })
+        .collect();
+    let ends: Vec<f64> = out.iter().map(|o| o.t_end).collect();
+    // Pass 0: the twins (a coarser step); then reruns at finer steps.
+    for pass in 0..=control::MAX_RERUNS {
+        let steps: Vec<Option<f64>> = track
+            .iter()
+            .zip(&out)
+            .map(|(t, o)| {
+                let t = t.as_ref().filter(|t| t.open)?;
+                if pass == 0 {
+                    return Some(t.h * control::TWIN_RATIO);
+                }
+                let tol = o.tolerance?;
+                (o.error_estimate > tol)
+                    .then(|| control::next_step(t.h, o.error_estimate, tol, t.q))
+            })
+            .collect();
+        if steps.iter().all(Option::is_none) {
+            break;
+        }
+        let runs = backend.run_chains(n, &|k| {
+            let Some(h) = steps[k] else { return Ok(None) };
+            Ok(job(k)?.map(|mut j| {
+                j.plan = j.plan.rerun(&j.beads, h, ends[k], false);
+                j
+            }))
+        })?;
+        for (k, r) in runs.into_iter().enumerate() {
+            let (Some(t), Some(_)) = (track[k].as_mut(), steps[k]) else {
+                continue;
+            };
+            if pass > 0 && r.status != Status::Ok {
+                // A finer run that failed (the step cap): the row stays
+                // the last good run's, with its estimate.
+                t.open = false;
+                continue;
+            }
+            let (fine, coarse) = if pass == 0 {
+                (&out[k], &r)
+            } else {
+                (&r, &out[k])
+            };
+            let d = control::difference(out[k].v_scale, fine, coarse);
+            t.q = control::order(fine.refined, coarse.refined);
+            let est = control::estimate(d, coarse.dt / fine.dt, t.q);
+            t.diffs.push(d);
+            if pass > 0 {
+                t.h = r.dt;
+                out[k] = r;
+            }
+            out[k].error_estimate = est;
+        }
+    }
+    for (o, t) in out.iter_mut().zip(&track) {
+        if let (Some(t), Some(tol)) = (t, o.tolerance) {
+            o.status = control::verdict(o.error_estimate, tol, &t.diffs);
+        }
+    }
+    Ok(out)
+}
+
 /// `auto`: a hardware GPU that can run `precision`, else the CPU (said on
 /// stderr); `gpu`: any adapter, software ones included, or an error.
 pub fn choose(choice: BackendChoice, precision: Precision) -> anyhow::Result<Box<dyn Backend>> {

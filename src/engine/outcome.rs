@@ -31,6 +31,13 @@ pub enum Status {
     OverlapInvalid,
     /// The scene failed validation (in a sweep: this combination of values).
     Invalid,
+    /// A granular chain whose error estimate stayed above its tolerance
+    /// after the error control's reruns (docs/SPEC.md §9).
+    Inaccurate,
+    /// A granular chain whose outcome does not converge as the step
+    /// shrinks: it depends on its initial data (and round-off) more than
+    /// the tolerance allows, e.g. chaotic scattering (docs/SPEC.md §9).
+    Sensitive,
 }
 
 impl Status {
@@ -43,6 +50,8 @@ impl Status {
             Status::EnergyError => "energy_error",
             Status::OverlapInvalid => "overlap_invalid",
             Status::Invalid => "invalid",
+            Status::Inaccurate => "inaccurate",
+            Status::Sensitive => "sensitive",
         }
     }
 }

@@ -18,7 +18,7 @@ pub struct Columns {
 }
 
 /// The columns after the per-bead ones, in order.
-const TAIL: [&str; 16] = [
+const TAIL: [&str; 17] = [
     "pulse_speed",
     "pulse_width",
     "wall_left_peak_force",
@@ -35,6 +35,7 @@ const TAIL: [&str; 16] = [
     "t_end",
     "steps",
     "dt",
+    "error_estimate",
 ];
 
 impl Columns {
@@ -155,6 +156,7 @@ impl Columns {
         out(Field::Num(o.t_end));
         out(Field::Int(o.steps));
         out(Field::Num(o.dt));
+        num(o.error_estimate, out);
     }
 }
 
@@ -215,5 +217,17 @@ pub fn table(name: &str, b: &Beads, o: &ChainOutcome) -> String {
         "t_end              {:.6e} s, {} steps (dt = {:.4e} s)",
         o.t_end, o.steps, o.dt
     );
+    let _ = match o.tolerance {
+        Some(tol) => writeln!(
+            s,
+            "error_estimate     {:.3e}  (of the velocity scale; tolerance {tol:e})",
+            o.error_estimate
+        ),
+        None => writeln!(
+            s,
+            "error_estimate     {:.3e}  (of the velocity scale; a given step)",
+            o.error_estimate
+        ),
+    };
     s
 }

@@ -219,9 +219,11 @@ fn batch(
             // integration.
             t1 = t;
             let job = |k: usize| sweep.chain_job(ids.at(first + k as u64), &opts.overrides);
-            return Ok(Outcomes::Chain(
-                backend.run_chains((end - first) as usize, &job)?,
-            ));
+            return Ok(Outcomes::Chain(crate::backend::run_chains_controlled(
+                backend,
+                (end - first) as usize,
+                &job,
+            )?));
         }
         let jobs = (first..end)
             .map(|p| sweep.job(ids.at(p), &opts.overrides))

@@ -22,6 +22,7 @@
 //! f64): the state ([`step::State`]), the constants ([`Consts`]), the step
 //! and the observers are generic over [`Real`]; the outcome is f64.
 
+pub mod control;
 pub mod history;
 pub mod observe;
 pub mod run;
@@ -401,6 +402,10 @@ pub struct Plan {
     /// What the step computes in: f64, or df64 (pairs of f32, the GPU's
     /// choice where f64 is slow or missing).
     pub precision: Precision,
+    /// The method (its substeps are `weights`).
+    pub method: crate::scene::Method,
+    /// The tolerance the run is to meet ([`control`]); `None`: a given step.
+    pub tolerance: Option<f64>,
 }
 
 impl Plan {
@@ -487,48 +492,11 @@ pub fn refined_error_model(m: crate::scene::Method) -> Option<(f64, f64)> {
 /// ⌈every/h⌉ to 4·⌈every/h⌉ (at most 10^4 tried) that keeps τ on a boundary
 /// as well, if there is one (else the rows win).
 pub fn plan(beads: &Beads, solver: &Solver, every: Option<f64>) -> Plan {
-    let ts = beads.time_scale();
-    let fine = ts / REFINE_FROM;
-    let refinable = refined_error_model(solver.method).is_some();
-    let mut h = match solver.step {
-        StepRule::Dt(dt) => dt,
-        StepRule::Tolerance(tol) => {
-            let tol = tol / (beads.run_length() / ts).max(FIT_LENGTH);
-            let at = |(c, q): (f64, f64)| ts * (tol / c).powf(1.0 / q);
-            let coarse = at(chain_error_model(solver.method)).min(ts / MIN_STEPS_PER_SCALE);
-            match refined_error_model(solver.method).map(at) {
-                // Refined steps meet the tolerance from some step at or
-                // below t_s/REFINE_FROM (at most that step), and coarse
-                // ones need finer than that: refine.
-                Some(h) if coarse < fine => h.min(fine),
-                _ => coarse,
-            }
-        }
-    } * solver.step_factor;
-    // τ, when the pulse ends before the run does.
-    let kink = beads
-        .pulse
-        .as_ref()
-        .map(|p| p.duration)
-        .filter(|&tau| beads.duration.is_none_or(|d| tau < d));
-    let on_boundary = |h: f64, tau: f64| {
-        let n = tau / h;
-        (n - n.round()).abs() <= 1e-9 * n.max(1.0)
+    let (h, tolerance) = match solver.step {
+        StepRule::Dt(dt) => (dt, None),
+        StepRule::Tolerance(tol) => (first_step(beads, solver.method, tol), Some(tol)),
     };
-    match (every, kink) {
-        (Some(e), Some(tau)) => {
-            // At most 10^4 candidates: a search, not a hang, when every ≫ h.
-            let k0 = (e / h).ceil();
-            let k = (0..=(3.0 * k0).min(1e4) as u64)
-                .map(|j| k0 + j as f64)
-                .find(|&k| on_boundary(e / k, tau))
-                .unwrap_or(k0);
-            h = e / k;
-        }
-        (Some(e), None) => h = e / (e / h).ceil(),
-        (None, Some(tau)) => h = tau / (tau / h).ceil(),
-        (None, None) => {}
-    }
+    let h = h * solver.step_factor;
     let max_time = beads.duration.unwrap_or_else(|| {
         solver
             .max_time
@@ -536,20 +504,95 @@ pub fn plan(beads: &Beads, solver: &Solver, every: Option<f64>) -> Plan {
     });
     let kicks = (solver.method.order() > 2)
         .then(|| crate::engine::integrate::kick_weights(weights(solver.method)));
-    Plan {
+    let p = Plan {
         h,
+        method: solver.method,
         weights: weights(solver.method),
-        refine: (refinable && h <= fine).then(|| step::Refine {
-            reach: step::REFINE_REACH,
-            steps: step::REFINE_STEPS,
-            near: step::REFINE_NEAR,
-            floor: step::REFINE_FLOOR * beads.v_scale() * ts,
-        }),
+        refine: None,
         kicks,
         duration: beads.duration,
         max_time,
         max_steps: solver.max_steps,
         every,
         precision: solver.precision,
+        tolerance,
+    };
+    p.with_step(beads, h, false)
+}
+
+/// The step the fitted error models give for tolerance `tol` (the first
+/// guess of the error control, [`control`]): h = t_s·(tol/C)^{1/q} with the
+/// method's [`chain_error_model`], at most t_s/20; where that is finer than
+/// t_s/[`REFINE_FROM`] and the method has a [`refined_error_model`], that
+/// model's step instead, at most t_s/`REFINE_FROM`.
+pub fn first_step(beads: &Beads, method: crate::scene::Method, tol: f64) -> f64 {
+    let ts = beads.time_scale();
+    let fine = ts / REFINE_FROM;
+    let tol = tol / (beads.run_length() / ts).max(FIT_LENGTH);
+    let at = |(c, q): (f64, f64)| ts * (tol / c).powf(1.0 / q);
+    let coarse = at(chain_error_model(method)).min(ts / MIN_STEPS_PER_SCALE);
+    match refined_error_model(method).map(at) {
+        // Refined steps meet the tolerance from some step at or below
+        // t_s/REFINE_FROM (at most that step), and coarse ones need finer
+        // than that: refine.
+        Some(h) if coarse < fine => h.min(fine),
+        _ => coarse,
+    }
+}
+
+impl Plan {
+    /// This plan with step `h` (before the alignments below), the local
+    /// refinement on for the methods that have one at steps of
+    /// t_s/[`REFINE_FROM`] and finer, or at any step if `refine`: a pulse that
+    /// ends within the run ends on a step boundary, trace rows fall on
+    /// steps ([`plan`]).
+    pub fn with_step(mut self, beads: &Beads, mut h: f64, refine: bool) -> Plan {
+        // τ, when the pulse ends before the run does.
+        let kink = beads
+            .pulse
+            .as_ref()
+            .map(|p| p.duration)
+            .filter(|&tau| self.duration.is_none_or(|d| tau < d));
+        // ⌈x⌉, x within a relative 1e-12 above a whole number taken as it:
+        // a step already aligned (x/k) aligns to itself, bit for bit.
+        let up = |x: f64| (x * (1.0 - 1e-12)).ceil();
+        let on_boundary = |h: f64, tau: f64| {
+            let n = tau / h;
+            (n - n.round()).abs() <= 1e-9 * n.max(1.0)
+        };
+        match (self.every, kink) {
+            (Some(e), Some(tau)) => {
+                // At most 10^4 candidates: a search, not a hang, when every ≫ h.
+                let k0 = up(e / h);
+                let k = (0..=(3.0 * k0).min(1e4) as u64)
+                    .map(|j| k0 + j as f64)
+                    .find(|&k| on_boundary(e / k, tau))
+                    .unwrap_or(k0);
+                h = e / k;
+            }
+            (Some(e), None) => h = e / up(e / h),
+            (None, Some(tau)) => h = tau / up(tau / h),
+            (None, None) => {}
+        }
+        self.h = h;
+        let fine = beads.time_scale() / REFINE_FROM;
+        let on = refine || h <= fine;
+        self.refine = (on && refined_error_model(self.method).is_some()).then(|| step::Refine {
+            reach: step::REFINE_REACH,
+            steps: step::REFINE_STEPS,
+            near: step::REFINE_NEAR,
+            floor: step::REFINE_FLOOR * beads.v_scale() * beads.time_scale(),
+        });
+        self
+    }
+
+    /// A run of the same chain with step `h` (aligned as [`plan`] aligns
+    /// it) that ends at `t_end` exactly: the error control's twins and
+    /// reruns ([`control`]).
+    pub fn rerun(&self, beads: &Beads, h: f64, t_end: f64, refine: bool) -> Plan {
+        let mut p = self.clone();
+        p.duration = Some(t_end);
+        p.max_time = t_end;
+        p.with_step(beads, h, refine)
     }
 }

@@ -312,6 +312,16 @@ pub struct ChainOutcome {
     pub region_beads: u64,
     /// The step (s).
     pub dt: f64,
+    /// The error estimate (relative to the velocity scale, in the metric of
+    /// [`super::control::difference`]) from the error control's twin run;
+    /// NaN where none was run.
+    pub error_estimate: f64,
+    /// The velocity scale errors are relative to (m/s; [`super::Beads::v_scale`]).
+    pub v_scale: f64,
+    /// The tolerance the run was planned for (`None`: a given step).
+    pub tolerance: Option<f64>,
+    /// Whether the run had the local refinement on ([`super::Plan::refine`]).
+    pub refined: bool,
 }
 
 impl ChainOutcome {
@@ -338,6 +348,10 @@ impl ChainOutcome {
             regions: 0,
             region_beads: 0,
             dt: f64::NAN,
+            error_estimate: f64::NAN,
+            v_scale: f64::NAN,
+            tolerance: None,
+            refined: false,
         }
     }
 }

@@ -23,6 +23,10 @@ impl Rows for NoRows {
     fn row(&mut self, _: f64, _: &Beads, _: &State) {}
 }
 
+/// A gap between beads counts towards `fragments` when wider than this
+/// fraction of the smaller radius (5 pm for 5 mm beads).
+pub const FRAGMENT_GAP: f64 = 1e-9;
+
 /// Check overlaps and finiteness every this many steps (over the window).
 pub const CHECK_EVERY: u64 = 16;
 
@@ -327,7 +331,13 @@ pub fn finish<R: Real>(
             status = Status::EnergyError;
         }
     }
-    let fragments = 1 + (1..n).filter(|&j| b.d0[j] + st.p[j] < 0.0).count();
+    // A gap counts when it is wider than FRAGMENT_GAP of its contact's
+    // radius: far above round-off (a tail's contacts open by ~1e-20 m),
+    // far below any gap an experiment resolves.
+    let fragments = 1
+        + (1..n)
+            .filter(|&j| b.d0[j] + st.p[j] < -FRAGMENT_GAP * contact_radius(b, j))
+            .count();
     let [lw, rw] = obs.walls;
     let wall = |w: WallWatch<R>, on: bool| {
         on.then_some(WallOutcome {
@@ -355,5 +365,9 @@ pub fn finish<R: Real>(
         regions: st.regions,
         region_beads: st.region_beads,
         dt: plan.h,
+        error_estimate: f64::NAN,
+        v_scale: b.v_scale(),
+        tolerance: plan.tolerance,
+        refined: plan.substeps().refine.is_some(),
     }
 }
