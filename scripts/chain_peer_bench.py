@@ -24,6 +24,7 @@ reference (this engine, yoshida4 at tolerance 1e-10).
   cargo build --release
   python3 -m venv /tmp/nb && /tmp/nb/bin/pip install numba numpy
   NUMBA_NUM_THREADS=2 /tmp/nb/bin/python scripts/chain_peer_bench.py > results/chain_peer.md
+  (then the "Machine" and "Reading it" notes below the tables, by hand)
 """
 import csv, math, os, subprocess, sys, tempfile, time
 import numba

@@ -536,11 +536,7 @@ impl RunRequest {
         };
         // The trace is the reported run's: that run again, rows written
         // (the same plan, so the same bits).
-        let plan = if o.dt == plan.h {
-            plan
-        } else {
-            plan.rerun(beads, o.dt, o.t_end, plan.refine.is_some())
-        };
+        let plan = crate::backend::reported_plan(&job, &o);
         // Written beside the path and published whole (a kill or a
         // full disk leaves the previous trace, never a cut-off one).
         let traced = crate::output::publish::write_alone(path, |w| {

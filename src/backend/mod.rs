@@ -255,6 +255,16 @@ pub fn run_chains_controlled(
     Ok(out)
 }
 
+/// The plan of the run that a [`run_chains_controlled`] outcome `o` of
+/// `job` reports: run again (with trace rows, say), it gives the same bits.
+pub fn reported_plan(job: &ChainJob, o: &ChainOutcome) -> Plan {
+    if o.dt == job.plan.h {
+        job.plan.clone()
+    } else {
+        job.plan.rerun(&job.beads, o.dt, o.t_end, false)
+    }
+}
+
 /// `auto`: a hardware GPU that can run `precision`, else the CPU (said on
 /// stderr); `gpu`: any adapter, software ones included, or an error.
 pub fn choose(choice: BackendChoice, precision: Precision) -> anyhow::Result<Box<dyn Backend>> {

@@ -495,12 +495,21 @@ fn run_chain_scene(sweep: &Sweep, id: u64, o: &crate::engine::Overrides) -> Resu
         anyhow::bail!("scene {id} is not a valid chain (status invalid)");
     };
     let cols = sweep.chains.as_ref().context("a chain sweep")?;
-    let mut plan = job.plan.clone();
-    // Every step offered to the history, which keeps evenly spaced rows:
-    // the step is the sweep row's own, so the outcome is the row's.
+    // The row's run under the error control (docs/SPEC.md §9), then the run
+    // it reports once more with every step offered to the history (which
+    // keeps evenly spaced rows): the same plan, so the outcome is the row's.
+    let row = crate::backend::run_chains_controlled(&crate::backend::cpu::Cpu, 1, &|_| {
+        Ok(Some(job.clone()))
+    })?
+    .remove(0);
+    let mut plan = crate::backend::reported_plan(&job, &row);
     plan.every = Some(plan.h);
     let mut h = History::new(&job.beads, HISTORY_BEADS, HISTORY_ROWS);
-    let o = granular::run(&job.beads, &plan, &mut h);
+    let o = granular::ChainOutcome {
+        status: row.status,
+        error_estimate: row.error_estimate,
+        ..granular::run(&job.beads, &plan, &mut h)
+    };
     let outcome: Vec<Json_> = cols
         .header()
         .into_iter()
