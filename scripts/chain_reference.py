@@ -16,7 +16,7 @@ The reference's own error is checked by integrating twice (rtol 1e-12 and
 velocity scales): the table reports that difference beside each chain; a run's
 error below ~10x it is not resolved by the reference.
 
-    python3 -m venv /tmp/ref && /tmp/ref/bin/pip install numpy scipy numba
+    python3 -m venv /tmp/ref && /tmp/ref/bin/pip install numpy scipy
     /tmp/ref/bin/python scripts/chain_reference.py target/chain_contract.json \
         --out target/chain_contract_errors.json
 """
@@ -31,14 +31,8 @@ from concurrent.futures import ProcessPoolExecutor
 import numpy as np
 DEBUG = False
 
-try:
-    from numba import njit
-except ImportError:  # plain numpy: slower, same numbers
-    def njit(*a, **k):
-        return (lambda f: f) if not a or not callable(a[0]) else a[0]
 
 
-@njit(cache=True)
 def accel(u, k, d0, f0, inv_m):
     """Accelerations of the beads at displacements u (from rest, +: right).
 
@@ -46,21 +40,12 @@ def accel(u, k, d0, f0, inv_m):
     one) has overlap d0_j + u_{j-1} - u_j; it pushes bead j right and j-1 left
     with k_j*delta^(3/2) (0 when open); f0_j is its force at rest.
     """
-    n = u.shape[0]
-    a = np.empty(n)
-    e = np.empty(n + 1)
-    for j in range(n + 1):
-        if k[j] == 0.0:
-            e[j] = 0.0
-            continue
-        ul = u[j - 1] if j > 0 else 0.0
-        ur = u[j] if j < n else 0.0
-        d = d0[j] + ul - ur
-        f = k[j] * d * math.sqrt(d) if d > 0.0 else 0.0
-        e[j] = f - f0[j]
-    for i in range(n):
-        a[i] = (e[i] - e[i + 1]) * inv_m[i]
-    return a
+    ul = np.concatenate(([0.0], u))
+    ur = np.concatenate((u, [0.0]))
+    d = np.maximum(d0 + ul - ur, 0.0)
+    e = k * d * np.sqrt(d) - f0
+    e[k == 0.0] = 0.0
+    return (e[:-1] - e[1:]) * inv_m
 
 
 def make_rhs(c, pulse_on):
