@@ -668,3 +668,23 @@ fn a_granular_chain_runs_with_its_probes_walls_and_record() {
         "{text}"
     );
 }
+
+/// The default end (1.1× the time the pulse peaked at the far end) can stop
+/// a short chain while its last bead still rebounds from the wall: the
+/// table names that wall impulse partial; with a duration past the rebound
+/// it does not.
+#[test]
+fn a_wall_impulse_cut_off_by_the_default_end_says_partial() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = "balls = 3\nradius = 0.005\n[walls]\nright = true\n[launch]\nballs = 1\nvelocity = 0.5\n[probes]\nbeads = [0, 2]\n";
+    let short = write(&dir, "short.toml", text);
+    let out = String::from_utf8(success(&["run", &short])).unwrap();
+    assert!(out.contains("impulse") && out.contains("(partial"), "{out}");
+    let long = write(
+        &dir,
+        "long.toml",
+        &format!("{text}[stop]\nduration = 1e-3\n"),
+    );
+    let out = String::from_utf8(success(&["run", &long])).unwrap();
+    assert!(out.contains("impulse") && !out.contains("partial"), "{out}");
+}

@@ -196,8 +196,14 @@ pub fn table(name: &str, b: &Beads, o: &ChainOutcome) -> String {
         if let Some(w) = w {
             let _ = writeln!(
                 s,
-                "wall_{side:<5}         peak {:.6e} N, impulse {:.6e} N·s",
-                w.peak_force, w.impulse
+                "wall_{side:<5}         peak {:.6e} N, impulse {:.6e} N·s{}",
+                w.peak_force,
+                w.impulse,
+                if w.in_contact {
+                    " (partial: its bead still touches it at t_end; set [stop] duration for the whole rebound)"
+                } else {
+                    ""
+                }
             );
         }
     }

@@ -272,6 +272,9 @@ pub struct WallOutcome {
     pub peak_force: f64,
     /// ∫(F − F0) dt (N·s).
     pub impulse: f64,
+    /// Without precompression: whether its bead still touches it at the
+    /// end (the impulse is then partial: the rebound was not over).
+    pub in_contact: bool,
 }
 
 /// The outcome of one chain run.

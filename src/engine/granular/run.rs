@@ -339,10 +339,12 @@ pub fn finish<R: Real>(
             .filter(|&j| b.d0[j] + st.p[j] < -FRAGMENT_GAP * contact_radius(b, j))
             .count();
     let [lw, rw] = obs.walls;
-    let wall = |w: WallWatch<R>, on: bool| {
+    let wall = |w: WallWatch<R>, on: bool, j: usize| {
         on.then_some(WallOutcome {
             peak_force: w.peak.to64(),
             impulse: w.impulse.to64(),
+            // (under precompression the wall is always touched)
+            in_contact: b.d0[j] <= 0.0 && b.d0[j] + st.p[j] > 0.0,
         })
     };
     ChainOutcome {
@@ -350,8 +352,8 @@ pub fn finish<R: Real>(
         probes,
         pulse_speed,
         pulse_width: obs.width,
-        left_wall: wall(lw, b.left_wall),
-        right_wall: wall(rw, b.right_wall),
+        left_wall: wall(lw, b.left_wall, 0),
+        right_wall: wall(rw, b.right_wall, n),
         energy_reflected: er,
         energy_transmitted: et,
         energy_left: el,
