@@ -522,37 +522,27 @@ impl RunRequest {
         };
         let every = self.trace.as_ref().map(|t| t.1);
         let plan = granular::plan(beads, &self.solver, every);
-        // Under the error control (docs/SPEC.md §9), on this thread's CPU.
+        // Under the error control (docs/SPEC.md §9), on the CPU.
         let job = crate::backend::ChainJob {
             beads: beads.clone(),
-            plan: plan.clone(),
+            plan,
         };
-        let o = crate::backend::run_chains_controlled(&crate::backend::cpu::Cpu, 1, &|_| {
-            Ok(Some(job.clone()))
-        })?
-        .remove(0);
+        let o = crate::backend::run_chain_controlled(&job)?;
         let Some((path, _)) = &self.trace else {
             return Ok(o);
         };
-        // The trace is the reported run's: that run again, rows written
-        // (the same plan, so the same bits).
-        let plan = crate::backend::reported_plan(&job, &o);
-        // Written beside the path and published whole (a kill or a
-        // full disk leaves the previous trace, never a cut-off one).
-        let traced = crate::output::publish::write_alone(path, |w| {
+        // The trace is the reported run's: that run again, rows written.
+        // Written beside the path and published whole (a kill or a full
+        // disk leaves the previous trace, never a cut-off one).
+        Ok(crate::output::publish::write_alone(path, |w| {
             let mut tw =
                 crate::output::trace::ChainTraceWriter::new(w, beads, self.trace_beads.clone())
                     .with_context(|| format!("writing {}", path.display()))?;
-            let o = granular::run(beads, &plan, &mut tw);
+            let traced = crate::backend::rerun_reported(&job, &o, &mut tw, false);
             tw.finish()
                 .with_context(|| format!("writing {}", path.display()))?;
-            Ok(o)
-        })?;
-        Ok(ChainOutcome {
-            status: o.status,
-            error_estimate: o.error_estimate,
-            ..traced
-        })
+            Ok(traced)
+        })?)
     }
 
     /// The trace's path and spacing, checked: the hertz model only, a

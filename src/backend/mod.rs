@@ -6,7 +6,7 @@ pub mod gpu;
 pub mod layout;
 
 use crate::choice::Choice;
-use crate::engine::granular::{Beads, ChainOutcome, Plan};
+use crate::engine::granular::{self, Beads, ChainOutcome, Plan, Rows};
 use crate::engine::{Chain, Outcome, Solver, Status};
 use crate::error::{flag, InputError};
 use crate::scene::Precision;
@@ -255,13 +255,34 @@ pub fn run_chains_controlled(
     Ok(out)
 }
 
-/// The plan of the run that a [`run_chains_controlled`] outcome `o` of
-/// `job` reports: run again (with trace rows, say), it gives the same bits.
-pub fn reported_plan(job: &ChainJob, o: &ChainOutcome) -> Plan {
-    if o.dt == job.plan.h {
+/// One chain under the error control ([`run_chains_controlled`]) on the
+/// CPU: `cradle run`, Python's `run` and the explorer's chain view.
+pub fn run_chain_controlled(job: &ChainJob) -> anyhow::Result<ChainOutcome> {
+    Ok(run_chains_controlled(&cpu::Cpu, 1, &|_| Ok(Some(job.clone())))?.remove(0))
+}
+
+/// The run that `row`, a controlled outcome of `job`, reports, run again
+/// with its rows to `rows` (every step offered to them if `every_step`):
+/// the same plan, so the same bits, with the row's status and estimate. A
+/// trace or a history is thus the row's own run.
+pub fn rerun_reported(
+    job: &ChainJob,
+    row: &ChainOutcome,
+    rows: &mut dyn Rows,
+    every_step: bool,
+) -> ChainOutcome {
+    let mut plan = if row.dt == job.plan.h {
         job.plan.clone()
     } else {
-        job.plan.rerun(&job.beads, o.dt, o.t_end, false)
+        job.plan.rerun(&job.beads, row.dt, row.t_end, false)
+    };
+    if every_step {
+        plan.every = Some(plan.h);
+    }
+    ChainOutcome {
+        status: row.status,
+        error_estimate: row.error_estimate,
+        ..granular::run(&job.beads, &plan, rows)
     }
 }
 

@@ -490,7 +490,7 @@ async fn row(State(d): State<Arc<Data>>, Query(q): Query<HashMap<String, String>
 /// space-time image (at most [`HISTORY_BEADS`] beads × 2·[`HISTORY_ROWS`]
 /// rows, as f32).
 fn run_chain_scene(sweep: &Sweep, id: u64, o: &crate::engine::Overrides) -> Result<Json_> {
-    use crate::engine::granular::{self, history::History};
+    use crate::engine::granular::history::History;
     let Some(job) = sweep.chain_job(id, o)? else {
         anyhow::bail!("scene {id} is not a valid chain (status invalid)");
     };
@@ -498,18 +498,9 @@ fn run_chain_scene(sweep: &Sweep, id: u64, o: &crate::engine::Overrides) -> Resu
     // The row's run under the error control (docs/SPEC.md §9), then the run
     // it reports once more with every step offered to the history (which
     // keeps evenly spaced rows): the same plan, so the outcome is the row's.
-    let row = crate::backend::run_chains_controlled(&crate::backend::cpu::Cpu, 1, &|_| {
-        Ok(Some(job.clone()))
-    })?
-    .remove(0);
-    let mut plan = crate::backend::reported_plan(&job, &row);
-    plan.every = Some(plan.h);
+    let row = crate::backend::run_chain_controlled(&job)?;
     let mut h = History::new(&job.beads, HISTORY_BEADS, HISTORY_ROWS);
-    let o = granular::ChainOutcome {
-        status: row.status,
-        error_estimate: row.error_estimate,
-        ..granular::run(&job.beads, &plan, &mut h)
-    };
+    let o = crate::backend::rerun_reported(&job, &row, &mut h, true);
     let outcome: Vec<Json_> = cols
         .header()
         .into_iter()

@@ -223,17 +223,13 @@ pub fn table(name: &str, b: &Beads, o: &ChainOutcome) -> String {
         "t_end              {:.6e} s, {} steps (dt = {:.4e} s)",
         o.t_end, o.steps, o.dt
     );
-    let _ = match o.tolerance {
-        Some(tol) => writeln!(
-            s,
-            "error_estimate     {:.3e}  (of the velocity scale; tolerance {tol:e})",
-            o.error_estimate
-        ),
-        None => writeln!(
-            s,
-            "error_estimate     {:.3e}  (of the velocity scale; a given step)",
-            o.error_estimate
-        ),
-    };
+    let against = o.tolerance.map_or("a given step".to_string(), |tol| {
+        format!("tolerance {tol:e}")
+    });
+    let _ = writeln!(
+        s,
+        "error_estimate     {:.3e}  (of the velocity scale; {against})",
+        o.error_estimate
+    );
     s
 }
