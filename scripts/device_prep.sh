@@ -7,7 +7,8 @@
 #   .gpu/  a stripped release `cradle`, bench.sh, compare.py, gpu_tune.sh,
 #          grid100/grid1000 and stress.toml, the numba.cuda peer
 # Both folders are git-excluded. Then, with the device tool, one call carrying
-# .gl and .gpu:
+# .gl and .gpu: `bash .gpu/gpu_check.sh` (the one call of issue #48: about 6
+# minutes; its table and logs come back in $OUT). The older, longer scripts:
 #   for f in .gl/*.deb; do dpkg -x $f /; done; ldconfig; bash .gpu/bench.sh; bash .gpu/gpu_tune.sh
 # and, for the GPU peer: python3 .gpu/numba_cuda_grid.py --nf 1000 --ng 1000 --dt-div 10000
 set -euo pipefail
@@ -25,7 +26,7 @@ if ! ls .gl/libvulkan1_*.deb >/dev/null 2>&1; then
 fi
 cargo build --release
 cp target/release/cradle .gpu/ && strip .gpu/cradle
-cp scripts/gpu/bench.sh scripts/gpu/compare.py examples/stress.toml scripts/gpu_tune.sh scripts/gpu_chains.sh .gpu/
+cp scripts/gpu/bench.sh scripts/gpu/compare.py examples/stress.toml scripts/gpu_tune.sh scripts/gpu_chains.sh scripts/gpu_check.sh .gpu/
 cp scripts/peers/numba_cuda_grid.py .gpu/
 python3 scripts/grid.py 1000 1000 > .gpu/grid1000.toml
 python3 scripts/grid.py 100 100 > .gpu/grid100.toml

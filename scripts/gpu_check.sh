@@ -1,0 +1,192 @@
+#!/bin/bash
+# The one call for a lent GPU (issue #48): everything the GPU path is judged
+# by, in about 6 minutes, every run under `timeout`, the table printed last
+# and written with the raw logs where the device tool returns files ($OUT).
+#
+# Here, once (builds and copies everything; no device time):
+#   bash scripts/device_prep.sh
+# Then one device call, carrying .gl and .gpu, from the project's root:
+#   bash .gpu/gpu_check.sh
+# It stops at once (exit 3) when the adapter is not a hardware GPU, so no
+# device time goes to timing lavapipe or the CPU twice.
+#
+# Workloads (each GPU table is compared with the CPU's: the largest relative
+# difference of its numeric outcome columns and the rows whose status differs):
+#   grid1000  10^6 five-ball cradles (scripts/grid.py 1000 1000): GPU f64 at
+#             the default profile (twice: the first pays the shader builds)
+#             and at two other batch shapes, GPU f32, the CPU on all cores,
+#             the hard-sphere model on the CPU (the floor: no physics).
+#   stress    examples/stress.toml (3,360 chains up to 64 balls), the GPU
+#             capped at STRESS_CAP seconds.
+#   struck    1,000 struck chains of 1,000 beads (issue #30's target).
+#   dimer     512 struck 100-bead dimer chains (8 radius ratios x 64 speeds).
+# Environment: CAP (seconds per chain run, default 120), GRID_CAP (per grid1000
+# run, default 45), STRESS_CAP (the GPU's stress run, default 60),
+# PROFILES (the two extra grid1000 profiles, ';'-separated), ALLOW_SOFTWARE=1
+# (go on on lavapipe: a dry run of the script itself, with a small CAP).
+set -uo pipefail
+here=$(cd "$(dirname "$0")" && pwd)
+root=$(cd "$here/.." && pwd)
+out=${OUT:-/tmp/gpu_check_out}
+w=/tmp/gpu_check; rm -rf "$w"; mkdir -p "$w" "$out"
+cd "$here"
+for f in "$root"/.gl/*.deb; do dpkg -x "$f" / 2>/dev/null; done; ldconfig 2>/dev/null
+export XDG_RUNTIME_DIR=/tmp WGPU_BACKEND=vulkan
+icd=/usr/local/nvidia/share/vulkan/icd.d/nvidia_icd.json
+[ -f "$icd" ] && export VK_DRIVER_FILES=$icd
+CAP=${CAP:-120}; GRID_CAP=${GRID_CAP:-45}; STRESS_CAP=${STRESS_CAP:-60}
+PROFILES=${PROFILES:-"hardware,batch=65536,calls=2;hardware,batch=32768,calls=4,scenes_per_worker=1"}
+table=$w/table.md
+log() { echo "$*" | tee -a "$w/check.log" "$out/check.log"; }
+
+{ nvidia-smi; nvidia-smi -q -d CLOCK,PERFORMANCE,POWER; } >"$w/nvidia-smi.txt" 2>&1
+nvidia-smi -L 2>/dev/null | tee -a "$w/check.log"
+log "cores: $(nproc); $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2)"
+log "commit: $(cd "$root" && git rev-parse --short HEAD 2>/dev/null || echo unknown)"
+
+# The adapter first: a tiny sweep on --backend gpu, its sidecar's adapter.
+timeout -k 5 60 ./cradle sweep grid100.toml --out "$w/probe.csv" --backend gpu >"$w/probe.log" 2>&1
+adapter=$(python3 -c "import json; print(json.load(open('$w/probe.csv.json')).get('adapter', ''))" 2>/dev/null)
+log "adapter: ${adapter:-none}"
+case "${ALLOW_SOFTWARE:-0}:$adapter" in
+  *:|0:*Cpu*|0:*llvmpipe*)
+    log "not a hardware GPU: stopping (see $w/probe.log)"; cat "$w/probe.log"
+    tar czf "$out/gpu_check.tar.gz" -C /tmp gpu_check; exit 3 ;;
+esac
+
+cat >"$w/struck.toml" <<'T'
+[scene]
+balls = 1000
+radius = 0.005
+[scene.launch]
+balls = 1
+velocity = 0.1
+[scene.probes]
+beads = [250, 750]
+[[axis]]
+param = "launch.velocity"
+logspace = [0.01, 1.0, 1000]
+T
+cat >"$w/dimer.toml" <<'T'
+[scene]
+balls = 100
+radius = 0.005
+[scene.pattern]
+radius = [0.005, 0.0035]
+[scene.launch]
+balls = 1
+velocity = 0.1
+[scene.probes]
+beads = [20, 80]
+[[axis]]
+param = "pattern.radius[1]"
+linspace = [0.002, 0.005, 8]
+[[axis]]
+param = "launch.velocity"
+logspace = [0.01, 1.0, 64]
+T
+cp grid1000.toml stress.toml "$w/"
+
+# run NAME CAP PROFILE ARGS...: one `cradle` call under `timeout`; its wall
+# time (or "> CAP s (capped)") and the sidecar's GPU counters into $w/NAME.*.
+run() {
+  local name=$1 cap=$2 prof=$3; shift 3
+  local s e rc
+  s=$(date +%s.%N)
+  if [ -n "$prof" ]; then
+    CRADLE_GPU_PROFILE=$prof timeout -k 5 "$cap" ./cradle "$@" >"$w/$name.log" 2>&1; rc=$?
+  else
+    timeout -k 5 "$cap" ./cradle "$@" >"$w/$name.log" 2>&1; rc=$?
+  fi
+  e=$(python3 -c "print(f'{$(date +%s.%N)-$s:.2f}')")
+  case $rc in
+    0) echo "$e" >"$w/$name.wall" ;;
+    124|137) echo "> $cap (capped)" >"$w/$name.wall" ;;
+    *) echo "failed (exit $rc)" >"$w/$name.wall" ;;
+  esac
+  log "$(printf '%-22s %-14s %s' "$name" "$(cat "$w/$name.wall")" "$(tail -1 "$w/$name.log")")"
+}
+
+g=grid1000.toml
+run grid_gpu_f64_cold "$GRID_CAP" "" sweep $g --out $w/grid_gpu_f64_cold.csv --backend gpu --precision f64
+run grid_gpu_f64      "$GRID_CAP" "" sweep $g --out $w/grid_gpu_f64.csv --backend gpu --precision f64
+i=0; IFS=';' read -ra extra <<<"$PROFILES"
+for p in "${extra[@]}"; do
+  i=$((i + 1)); echo "$p" >"$w/grid_gpu_f64_shape$i.profile"
+  run "grid_gpu_f64_shape$i" "$GRID_CAP" "$p" sweep $g --out "$w/grid_gpu_f64_shape$i.csv" --backend gpu --precision f64
+done
+run grid_gpu_f32      "$GRID_CAP" "" sweep $g --out $w/grid_gpu_f32.csv --backend gpu --precision f32
+run grid_cpu          "$GRID_CAP" "" sweep $g --out $w/grid_cpu.csv --backend cpu
+run grid_hard_sphere  "$GRID_CAP" "" sweep $g --out $w/grid_hard_sphere.csv --backend cpu --model hard-sphere
+run struck_gpu        "$CAP" "" sweep $w/struck.toml --out $w/struck_gpu.csv --backend gpu
+run struck_cpu        "$CAP" "" sweep $w/struck.toml --out $w/struck_cpu.csv --backend cpu
+run dimer_gpu         "$CAP" "" sweep $w/dimer.toml --out $w/dimer_gpu.csv --backend gpu
+run dimer_cpu         "$CAP" "" sweep $w/dimer.toml --out $w/dimer_cpu.csv --backend cpu
+run stress_gpu  "$STRESS_CAP" "" sweep stress.toml --out $w/stress_gpu.csv --backend gpu --precision f64
+run stress_cpu        "$CAP" "" sweep stress.toml --out $w/stress_cpu.csv --backend cpu
+
+python3 - "$w" "$adapter" >"$table" <<'PY'
+import csv, json, math, os, sys
+w, adapter = sys.argv[1], sys.argv[2]
+def wall(n):
+    p = f"{w}/{n}.wall"
+    return open(p).read().strip() if os.path.exists(p) else "not run"
+def secs(n):
+    try: return float(wall(n))
+    except ValueError: return None
+def gpu_stats(n):
+    try: g = json.load(open(f"{w}/{n}.csv.json")).get("stages_s", {})
+    except Exception: return ""
+    d = g.get("gpu", {})
+    if not d: return ""
+    return (f"{d.get('dispatches', 0)} dispatches, {d.get('rounds', 0)} rounds, "
+            f"in flight {d.get('in_flight_fraction', 0):.2f}, on cpu {d.get('scenes_on_cpu', 0)}")
+def diff(a, b):
+    """Largest relative difference of numeric outcome columns, rows whose status differs."""
+    try:
+        ra, rb = csv.DictReader(open(f"{w}/{a}.csv")), csv.DictReader(open(f"{w}/{b}.csv"))
+        worst, col, status, rows = 0.0, "", 0, 0
+        for x, y in zip(ra, rb):
+            rows += 1
+            if x.get("status") != y.get("status"): status += 1
+            for k, u in x.items():
+                if k in ("id", "status") or k not in y: continue
+                try: u, v = float(u), float(y[k])
+                except (TypeError, ValueError): continue
+                if math.isfinite(u) and math.isfinite(v) and u != v:
+                    d = abs(u - v) / max(abs(u), abs(v), 1e-300)
+                    if d > worst: worst, col = d, k
+        return f"{rows} rows; max rel diff {worst:.1e} ({col or 'bit-identical'}); status differs {status}"
+    except FileNotFoundError:
+        return "no table"
+def speed(g, c):
+    a, b = secs(g), secs(c)
+    return f"{b / a:.2f}x" if a and b else "n/a"
+rows = [
+    ("grid1000 GPU f64 (cold: shader builds)", "grid_gpu_f64_cold", "grid_cpu"),
+    ("grid1000 GPU f64", "grid_gpu_f64", "grid_cpu"),
+]
+i = 1
+while os.path.exists(f"{w}/grid_gpu_f64_shape{i}.profile"):
+    rows.append((f"grid1000 GPU f64 [{open(f'{w}/grid_gpu_f64_shape{i}.profile').read().strip()}]",
+                 f"grid_gpu_f64_shape{i}", "grid_cpu")); i += 1
+rows += [
+    ("grid1000 GPU f32", "grid_gpu_f32", "grid_cpu"),
+    ("grid1000 CPU, all cores", "grid_cpu", None),
+    ("grid1000 hard-sphere CPU (floor)", "grid_hard_sphere", None),
+    ("struck 1,000 x 1,000 beads GPU", "struck_gpu", "struck_cpu"),
+    ("struck 1,000 x 1,000 beads CPU", "struck_cpu", None),
+    ("dimer 512 x 100 beads GPU", "dimer_gpu", "dimer_cpu"),
+    ("dimer 512 x 100 beads CPU", "dimer_cpu", None),
+    ("stress.toml GPU f64", "stress_gpu", "stress_cpu"),
+    ("stress.toml CPU", "stress_cpu", None),
+]
+print(f"adapter: {adapter}\n")
+print("| workload | wall (s) | vs CPU | difference from the CPU's table | GPU counters |")
+print("|---|---|---|---|---|")
+for label, n, c in rows:
+    print(f"| {label} | {wall(n)} | {speed(n, c) if c else ''} | {diff(n, c) if c else ''} | {gpu_stats(n)} |")
+PY
+cp "$table" "$out/gpu_check.md"
+tar czf "$out/gpu_check.tar.gz" -C /tmp --exclude='grid_*.csv*' --exclude='stress_*.csv*' --exclude='probe.csv' gpu_check
+echo; cat "$table"
