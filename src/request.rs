@@ -310,8 +310,13 @@ impl SweepRequest {
             on_row: hooks.on_row,
             cancel: hooks.cancel,
         };
-        let go = || crate::sweep::run::run(&self.sweep, &opts, backend.as_ref());
-        let mut s = match self.threads {
+        // The label inside the pool that ran it: `--threads 1` says 1 thread.
+        let go = || -> anyhow::Result<Summary> {
+            let mut s = crate::sweep::run::run(&self.sweep, &opts, backend.as_ref())?;
+            s.backend = format!("{} ({})", backend.name(), backend.adapter());
+            Ok(s)
+        };
+        let s = match self.threads {
             Some(t) => rayon::ThreadPoolBuilder::new()
                 .num_threads(t)
                 .build()
@@ -319,7 +324,6 @@ impl SweepRequest {
                 .install(go)?,
             None => go()?,
         };
-        s.backend = format!("{} ({})", backend.name(), backend.adapter());
         Ok(s)
     }
 }

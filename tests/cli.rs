@@ -616,7 +616,16 @@ fn a_granular_chain_runs_with_its_probes_walls_and_record() {
     // --error-estimate is accepted on chains and changes nothing: every
     // chain row has its estimate.
     let o2 = dir.path().join("o2.csv");
-    success(&["sweep", &sweep, "--out", o, "--threads", "1"]);
+    // The summary names the pool that ran it (it used to name the global one).
+    let out = cradle()
+        .args(["sweep", &sweep, "--out", o, "--threads", "1"])
+        .output()
+        .unwrap();
+    let said = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        out.status.success() && said.contains("(rayon, 1 thread)"),
+        "{said}"
+    );
     success(&[
         "sweep",
         &sweep,

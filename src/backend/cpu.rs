@@ -14,7 +14,10 @@ impl Backend for Cpu {
     }
 
     fn adapter(&self) -> String {
-        format!("rayon, {} threads", rayon::current_num_threads())
+        match rayon::current_num_threads() {
+            1 => "rayon, 1 thread".to_string(),
+            n => format!("rayon, {n} threads"),
+        }
     }
 
     fn run(&self, jobs: &[Job]) -> anyhow::Result<Vec<Outcome>> {
