@@ -126,6 +126,12 @@ pub struct DeviceStats {
     pub in_flight_s: f64,
     /// Scenes the backend ran on the CPU engine instead (`Profile::cpu_above`).
     pub cpu_scenes: u64,
+    /// Thread-seconds spent planning and packing scenes for the device.
+    pub packing_s: f64,
+    /// Thread-seconds spent reading outcomes out of the device's words.
+    pub unpacking_s: f64,
+    /// Thread-seconds packed batches waited for a turn on the device.
+    pub waiting_s: f64,
 }
 
 /// Run `jobs`; with `estimate`, also their coarse twins (every step twice as

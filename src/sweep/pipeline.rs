@@ -10,7 +10,9 @@
 //! own rows: the other lanes go on with later batches, up to [`AHEAD_ROWS`]
 //! rows past the oldest unwritten batch, which bounds the memory held by
 //! finished-but-unwritten rows. Lanes that reach that bound help the others
-//! (rayon `yield_now`) instead of sleeping.
+//! (rayon `yield_now`: chunks of another lane's batch) instead of sleeping.
+//! The lanes are a broadcast, one on each pool thread, so no lane can be
+//! run nested inside another's batch (see `stream`).
 //!
 //! Rows are formatted the same way whatever the lane, batch or thread count,
 //! so the file is byte-identical across them (tested). For Parquet the lanes
@@ -81,6 +83,9 @@ impl Stages {
                 "in_flight": d.in_flight_s,
                 "in_flight_fraction": d.in_flight_s / wall_s.max(1e-9),
                 "scenes_on_cpu": d.cpu_scenes,
+                "packing": d.packing_s,
+                "unpacking": d.unpacking_s,
+                "waiting_for_device": d.waiting_s,
             });
         }
         j
@@ -492,9 +497,16 @@ pub fn stream(
                 }
                 totals.lock().unwrap_or_else(|e| e.into_inner()).add(&st);
             };
-            rayon::scope(|rs| {
-                for _ in 0..lanes {
-                    rs.spawn(|_| lane());
+            // One lane on each pool thread (a broadcast, not spawned tasks:
+            // a spawned lane still queued could be stolen by a thread that
+            // waits inside another lane's batch — rayon runs queued work
+            // while it waits — and, nested there, wait for the writer to pass
+            // the very batch it sits on: a deadlock once the lanes outrun
+            // `ahead`, which batches of 16,384 scenes did on a 16-core GPU
+            // host. A broadcast's job runs only on its own thread.)
+            rayon::broadcast(|ctx| {
+                if ctx.index() < lanes {
+                    lane();
                 }
             });
         }

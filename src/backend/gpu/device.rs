@@ -20,6 +20,14 @@ const ROUNDS_IN_FLIGHT: usize = 2;
 /// Where a buffer's mapping for reading reports (`map_read`).
 pub(super) type Mapping = std::sync::mpsc::Receiver<Result<(), wgpu::BufferAsyncError>>;
 
+/// `CRADLE_GPU_LOG=1`: one line on stderr per look at a batch's counters
+/// (scenes, workgroups, rounds per dispatch, scenes done, seconds since the
+/// last look): how a batch goes on a device, for tuning a profile.
+fn log_rounds() -> bool {
+    static ON: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
+    *ON.get_or_init(|| std::env::var("CRADLE_GPU_LOG").is_ok_and(|v| v == "1"))
+}
+
 /// Ask for `b` to be mapped for reading once the submissions that write it
 /// are done (call after submitting them); `Gpu::mapped` waits and copies.
 pub(super) fn map_read(b: &wgpu::Buffer) -> Mapping {
@@ -32,8 +40,8 @@ pub(super) fn map_read(b: &wgpu::Buffer) -> Mapping {
 
 impl Gpu {
     /// Run the packed batch to the end of every scene on the device: workers
-    /// (one per scene on a software adapter, half as many on a hardware
-    /// GPU, refilled from the queue as their scenes end), rounds of dispatches
+    /// (one per scene, or fewer by the profile's `scenes_per_worker`,
+    /// refilled from the queue as their scenes end), rounds of dispatches
     /// with the next round submitted before the last one's queue counters are
     /// read (the device never waits for the host), rounds per dispatch by
     /// time on hardware and by llvmpipe's loop limit on software. Returns
@@ -166,6 +174,15 @@ impl Gpu {
             let q: GpuQueue = self.mapped(&qread[at], index, rx)?[0];
             self.stats.completed();
             let now = std::time::Instant::now();
+            if log_rounds() {
+                eprintln!(
+                    "cradle: gpu batch of {n}: {groups} workgroups, {} rounds x {} dispatches, {} done, {:.4} s",
+                    pace.rounds,
+                    pace.dispatches,
+                    q.done,
+                    (now - last_seen).as_secs_f64()
+                );
+            }
             pace.adapt((now - last_seen).as_secs_f64());
             last_seen = now;
             if q.done >= n {

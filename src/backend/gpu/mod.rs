@@ -102,9 +102,11 @@ pub struct Gpu {
     max_binding: u64,
     profile: Profile,
     stats: Tracker,
-    /// The granular-chain pipeline, compiled on first use.
     /// The chain pipeline of each precision (f64, df64), built on first use.
     chain_pipe: Mutex<[Option<Arc<chains::ChainPipe>>; 2]>,
+    /// Batches on the device now (at most `profile.calls`; more calls than
+    /// that are admitted, `host_ahead` of them planning, packing or unpacking).
+    on_device: (Mutex<usize>, std::sync::Condvar),
 }
 
 impl Gpu {
@@ -164,6 +166,7 @@ impl Gpu {
             },
             stats: Tracker::default(),
             chain_pipe: Mutex::new([None, None]),
+            on_device: (Mutex::new(0), std::sync::Condvar::new()),
         };
         Ok(gpu)
     }
@@ -227,13 +230,16 @@ impl Gpu {
         Ok(out)
     }
 
-    /// One part of a batch on the device: packed, integrated, read back.
+    /// One part of a batch on the device: planned and packed, integrated
+    /// (waiting for a turn: at most `profile.calls` parts on the device),
+    /// read back and unpacked.
     fn dispatch<R: Real + Pod>(
         &self,
         pipe: &wgpu::ComputePipeline,
         jobs: &[(&Chain, &Solver)],
         wide: Option<usize>,
     ) -> Result<Vec<(Run, f64)>> {
+        let t0 = std::time::Instant::now();
         let mut headers = Vec::with_capacity(jobs.len());
         let mut dts = Vec::with_capacity(jobs.len());
         let (mut params, mut state): (Vec<R>, Vec<R>) = (Vec::new(), Vec::new());
@@ -245,14 +251,43 @@ impl Gpu {
             params.extend(pack::scene_params::<R>(ch, &sp, &lim));
             state.extend(pack::scene_state::<R>(ch, sp.weights.len()));
         }
-        let (words, reals) = self.integrate::<R>(pipe, jobs, &headers, params, state, wide)?;
-        Ok(headers
+        let t1 = std::time::Instant::now();
+        let (words, reals) = {
+            let _turn = self.device_turn();
+            let t2 = std::time::Instant::now();
+            self.stats
+                .host((t1 - t0).as_secs_f64(), 0.0, (t2 - t1).as_secs_f64());
+            self.integrate::<R>(pipe, jobs, &headers, params, state, wide)?
+        };
+        let t3 = std::time::Instant::now();
+        let runs = headers
             .iter()
             .zip(jobs)
             .zip(dts)
             .enumerate()
             .map(|(i, ((h, (ch, _)), dt))| (pack::run(ch, h, i, &words, &reals), dt))
-            .collect())
+            .collect();
+        self.stats.host(0.0, t3.elapsed().as_secs_f64(), 0.0);
+        Ok(runs)
+    }
+
+    /// A turn on the device: waits while `profile.calls` parts are on it;
+    /// the turn ends when the guard is dropped.
+    fn device_turn(&self) -> impl Drop + '_ {
+        struct Turn<'a>(&'a (Mutex<usize>, std::sync::Condvar));
+        impl Drop for Turn<'_> {
+            fn drop(&mut self) {
+                *self.0 .0.lock().unwrap_or_else(|e| e.into_inner()) -= 1;
+                self.0 .1.notify_one();
+            }
+        }
+        let (m, cv) = &self.on_device;
+        let mut n = m.lock().unwrap_or_else(|e| e.into_inner());
+        while *n >= self.profile.calls.max(1) {
+            n = cv.wait(n).unwrap_or_else(|e| e.into_inner());
+        }
+        *n += 1;
+        Turn(&self.on_device)
     }
 }
 
@@ -268,9 +303,10 @@ impl Backend for Gpu {
         )
     }
 
-    /// [`Profile::calls`].
+    /// [`Profile::calls`] on the device and [`Profile::host_ahead`] on the
+    /// host beside them.
     fn max_concurrent_runs(&self) -> usize {
-        self.profile.calls
+        self.profile.calls + self.profile.host_ahead
     }
 
     /// [`Profile::batch`].

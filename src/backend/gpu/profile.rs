@@ -32,9 +32,14 @@ const ROUND_S: (f64, f64) = (0.002, 0.016);
 pub struct Profile {
     /// Scenes per sweep batch (`Backend::batch_size`).
     pub batch: u64,
-    /// Batches on the device at once (`Backend::max_concurrent_runs`); each
-    /// waits only for its own submissions.
+    /// Batches on the device at once; each waits only for its own
+    /// submissions.
     pub calls: usize,
+    /// Batches being planned, packed or unpacked on the host beside the
+    /// `calls` on the device (`Backend::max_concurrent_runs` is the sum):
+    /// the host's work on one batch overlaps the device's on another
+    /// instead of adding to it.
+    pub host_ahead: usize,
     /// Scenes per worker (1: a worker per scene; k: n/k workers, each taking
     /// about k scenes in turn); a workgroup per scene (`wide_above`) is
     /// always a worker per scene.
@@ -60,16 +65,24 @@ pub struct Profile {
 }
 
 impl Profile {
-    /// 8,192 scenes a call, four calls at once, half as many workers as
-    /// scenes (16,384 workers and 32,768 scenes resident; not yet tuned on a
-    /// GPU; host memory ~35 MB a call), paced by time; chains of more than 16
-    /// bodies a workgroup per scene (stress.toml's 64-ball chains hold 97%
-    /// of its steps: on the CPU engine beside the device, as before, the GPU
-    /// backend took as long as the CPU backend).
+    /// 8,192 scenes a call, four calls on the device and four more being
+    /// packed or unpacked on the host, a worker per scene (128 workgroups of
+    /// 64), paced by time; chains of more than 16 bodies a workgroup per
+    /// scene (stress.toml's 64-ball chains hold 97% of its steps). Measured
+    /// on an H100 (results/gpu_check.md, grid1000 f64, CPU on 16 cores
+    /// 3.1–3.2 s): host_ahead 0 → 4 took 3.18 s to 2.06 s (the host's
+    /// planning and packing had been added to the device's time, in flight
+    /// 53% of the wall); half as many workers as scenes → one each, 2.06 →
+    /// 1.61 s (and 2.43 → 1.89 s in a second call). Larger batches were
+    /// slower (16,384: 2.02 s, 32,768: 3.18 s, 65,536 with two calls:
+    /// 5.44 s): fewer batches fit the pipeline's rows-ahead bound, so fewer
+    /// are packed while others run. Wider shapes (several batches in one
+    /// dispatch) are what is left to try.
     pub const HARDWARE: Profile = Profile {
         batch: 8_192,
         calls: 4,
-        scenes_per_worker: 2,
+        host_ahead: 4,
+        scenes_per_worker: 1,
         rounds: None,
         timed: true,
         cpu_above: None,
@@ -81,6 +94,7 @@ impl Profile {
     pub const SOFTWARE: Profile = Profile {
         batch: crate::backend::BATCH,
         calls: 1,
+        host_ahead: 0,
         scenes_per_worker: 1,
         rounds: None,
         timed: false,
@@ -110,7 +124,7 @@ impl Profile {
                 bail!("{other:?}: allowed values are hardware and software (then ,key=value pairs)")
             }
         };
-        const KEYS: &str = "batch (1..=1048576), calls (1..=64), scenes_per_worker (1..=1024), rounds (1..=65536 or auto), timed (true|false), cpu_above (2..=64 or none), wide_above (1..=64 or none)";
+        const KEYS: &str = "batch (1..=1048576), calls (1..=64), host_ahead (0..=64), scenes_per_worker (1..=1024), rounds (1..=65536 or auto), timed (true|false), cpu_above (2..=64 or none), wide_above (1..=64 or none)";
         for kv in parts {
             let Some((k, v)) = kv.split_once('=') else {
                 bail!("{kv:?}: expected key=value; keys: {KEYS}");
@@ -124,6 +138,7 @@ impl Profile {
             match k {
                 "batch" => p.batch = int(1, 1 << 20)?,
                 "calls" => p.calls = int(1, 64)? as usize,
+                "host_ahead" => p.host_ahead = int(0, 64)? as usize,
                 "scenes_per_worker" => p.scenes_per_worker = int(1, 1024)? as u32,
                 "rounds" if v == "auto" => p.rounds = None,
                 "rounds" => p.rounds = Some(int(1, 65_536)? as u32),
@@ -237,6 +252,14 @@ impl Tracker {
             .unwrap_or_else(|e| e.into_inner())
             .0
             .cpu_scenes += scenes;
+    }
+
+    /// Host seconds: planning and packing, unpacking, waiting for the device.
+    pub(super) fn host(&self, packing: f64, unpacking: f64, waiting: f64) {
+        let mut g = self.inner.lock().unwrap_or_else(|e| e.into_inner());
+        g.0.packing_s += packing;
+        g.0.unpacking_s += unpacking;
+        g.0.waiting_s += waiting;
     }
 
     pub(super) fn get(&self) -> DeviceStats {
