@@ -24,6 +24,10 @@ fn main() -> ExitCode {
             if is_broken_pipe(&e) {
                 return ExitCode::SUCCESS;
             }
+            if e.is::<hertz_cradle::error::Interrupted>() {
+                // Said what was kept already; 128 + SIGINT, the shell's code.
+                return ExitCode::from(130);
+            }
             eprintln!("error: {e:#}");
             if e.chain().any(|c| c.downcast_ref::<InputError>().is_some()) {
                 ExitCode::from(2)
@@ -32,6 +36,27 @@ fn main() -> ExitCode {
             }
         }
     }
+}
+
+/// A flag set by the first Ctrl-C (or SIGTERM, SIGHUP): the sweep stops
+/// after the batches in hand, keeping every row written. A second one
+/// ends the process at once (exit 130; `--resume` still continues).
+fn stop_on_signal() -> std::sync::Arc<std::sync::atomic::AtomicBool> {
+    use std::sync::atomic::{AtomicBool, Ordering};
+    let stop = std::sync::Arc::new(AtomicBool::new(false));
+    let flag = stop.clone();
+    let handler = ctrlc::set_handler(move || {
+        if flag.swap(true, Ordering::SeqCst) {
+            std::process::exit(130);
+        }
+        eprintln!(
+            "\ncradle: stopping after the scenes in hand (press Ctrl-C again to stop at once)"
+        );
+    });
+    if let Err(e) = handler {
+        eprintln!("cradle: warning: Ctrl-C will end the sweep without a word ({e})");
+    }
+    stop
 }
 
 fn is_broken_pipe(e: &anyhow::Error) -> bool {
@@ -48,15 +73,44 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             // against the file) before any work or any GPU start-up.
             let req = args.request()?;
             let bar = hertz_cradle::progress::Bar::stderr(true);
-            let s = req
-                .run(Hooks {
-                    command: std::env::args().collect(),
-                    on_progress: Some(bar.callback()),
-                    ..Hooks::default()
+            let cancel = stop_on_signal();
+            let total = std::sync::Arc::new(std::sync::atomic::AtomicU64::new(0));
+            let on_progress = {
+                let (shown, total) = (bar.callback(), total.clone());
+                std::sync::Arc::new(move |p: hertz_cradle::sweep::session::Progress| {
+                    total.store(p.total, std::sync::atomic::Ordering::SeqCst);
+                    shown(p)
                 })
-                .map_err(|e| e.into_anyhow())?;
+            };
+            let run = req.run(Hooks {
+                command: std::env::args().collect(),
+                on_progress: Some(on_progress),
+                cancel: Some(cancel),
+                ..Hooks::default()
+            });
             drop(bar);
             let out = req.out_given.display();
+            let s = match run {
+                Err(hertz_cradle::request::Error::Interrupted) => {
+                    let kept = hertz_cradle::output::partial::resumable_rows(&req.out);
+                    let total = total.load(std::sync::atomic::Ordering::SeqCst);
+                    eprintln!(
+                        "cradle: interrupted: {} of {total} scenes are kept in {out}.partial; run the same command with --resume to continue (without --resume a rerun starts over)",
+                        kept.unwrap_or(0)
+                    );
+                    return Err(hertz_cradle::error::Interrupted.into());
+                }
+                r => r.map_err(|e| e.into_anyhow())?,
+            };
+            if let Some((rows, dropped)) = s.resumed {
+                let tail = match dropped {
+                    0 => String::new(),
+                    b => format!(
+                        "; dropped the {b} bytes after them (an incomplete or torn last row, or a crash's zero-filled block)"
+                    ),
+                };
+                eprintln!("cradle: resumed {out} after {rows} whole rows{tail}");
+            }
             if s.already_complete {
                 eprintln!("cradle: {out} is already complete; nothing to resume");
             } else {

@@ -274,6 +274,107 @@ fn disk_full_at_random_points_loses_nothing_and_resume_completes_the_same_bytes(
     );
 }
 
+/// Ctrl-C (SIGINT) during a sweep: the rows in hand are written, the run
+/// says how many are kept and how to continue, exits 130 (README's table),
+/// and `--resume` completes the bytes of an uninterrupted run. SIGTERM the same.
+#[test]
+fn ctrl_c_keeps_the_rows_says_how_to_continue_and_resume_completes_them() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let sw = write_sweep(d, 200, 500); // 100,000 scenes: seconds on one thread
+    let reference = d.join("ref.csv");
+    ok(&on_cpu(&sw, &reference, &[]));
+    let want = fs::read(&reference).unwrap();
+    for signal in ["-INT", "-TERM"] {
+        let out = d.join(format!("o{signal}.csv"));
+        let partial = d.join(format!("o{signal}.csv.partial"));
+        let child = Std::new(assert_cmd::cargo::cargo_bin("cradle"))
+            .args(["sweep", s(&sw), "--out", s(&out), "--backend", "cpu"])
+            .args(["--threads", "1"])
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        let t0 = Instant::now();
+        while fs::metadata(&partial).map_or(0, |m| m.len()) < 100_000
+            && t0.elapsed() < Duration::from_secs(60)
+        {
+            std::thread::sleep(Duration::from_millis(2));
+        }
+        let killed = Std::new("kill")
+            .args([signal, &child.id().to_string()])
+            .status()
+            .unwrap();
+        assert!(killed.success());
+        let o = child.wait_with_output().unwrap();
+        let e = stderr(&o);
+        assert_eq!(o.status.code(), Some(130), "{signal}: {e}");
+        assert!(!out.exists(), "an interrupted run must not look complete");
+        let part = fs::read(&partial).unwrap();
+        let rows = part.iter().filter(|&&b| b == b'\n').count() - 1;
+        assert!(want.starts_with(&part) && rows > 0 && part.len() < want.len());
+        assert!(
+            e.contains(&format!(
+                "interrupted: {rows} of 100000 scenes are kept in {}.partial; run the same command with --resume",
+                out.display()
+            )),
+            "{signal}: {e}"
+        );
+        assert!(!d.join(format!("o{signal}.csv.lock")).exists());
+        ok(&on_cpu(&sw, &out, &["--resume"]));
+        assert_eq!(fs::read(&out).unwrap(), want, "{signal}");
+    }
+}
+
+/// What ext4 can leave after a power cut: the last row torn, then a block
+/// of zeros (with or without a newline in it). `--resume` keeps only whole
+/// rows, says how many bytes it dropped, and completes the same bytes.
+#[test]
+fn resume_drops_a_torn_row_and_a_zero_filled_block_and_says_so() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let sw = write_sweep(d, 10, 1000); // 10,000 scenes: 5 batches of rows
+    let reference = d.join("ref.csv");
+    ok(&on_cpu(&sw, &reference, &[]));
+    let want = fs::read(&reference).unwrap();
+    for (i, tail) in [
+        vec![0u8; 4096],
+        [vec![0u8; 4000], b"\n".to_vec(), vec![0u8; 96]].concat(),
+        [b"\n".to_vec(), vec![0u8; 4095]].concat(),
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        let out = d.join(format!("t{i}.csv"));
+        let o = cradle()
+            .args(["sweep", s(&sw), "--out", s(&out), "--backend", "cpu"])
+            .env("CRADLE_FAILPOINT", "append:3")
+            .output()
+            .unwrap();
+        assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+        let partial = d.join(format!("t{i}.csv.partial"));
+        let mut part = fs::read(&partial).unwrap();
+        let whole = part.len();
+        // Half of the next row, then the zeros.
+        let next = want[whole..].iter().position(|&b| b == b'\n').unwrap();
+        part.extend_from_slice(&want[whole..whole + next / 2]);
+        part.extend_from_slice(&tail);
+        fs::write(&partial, &part).unwrap();
+        let o = run(&on_cpu(&sw, &out, &["--resume"]));
+        let e = stderr(&o);
+        assert!(o.status.success(), "{e}");
+        let rows = want[..whole].iter().filter(|&&b| b == b'\n').count() - 1;
+        assert!(
+            e.contains(&format!(
+                "resumed {} after {rows} whole rows; dropped the {} bytes after them",
+                out.display(),
+                part.len() - whole
+            )),
+            "{e}"
+        );
+        assert_eq!(fs::read(&out).unwrap(), want, "tail {i}");
+    }
+}
+
 #[test]
 fn kills_at_random_points_then_resume_give_the_same_bytes_and_a_whole_sidecar() {
     let dir = tempfile::tempdir().unwrap();

@@ -41,6 +41,24 @@ pub enum Status {
 }
 
 impl Status {
+    /// Every status, in declaration order.
+    pub const ALL: [Status; 9] = [
+        Status::Ok,
+        Status::StepCap,
+        Status::TimeCap,
+        Status::NonFinite,
+        Status::EnergyError,
+        Status::OverlapInvalid,
+        Status::Invalid,
+        Status::Inaccurate,
+        Status::Sensitive,
+    ];
+
+    /// The status named `name` (as [`Status::name`] writes it).
+    pub fn from_name(name: &str) -> Option<Status> {
+        Status::ALL.into_iter().find(|s| s.name() == name)
+    }
+
     pub fn name(self) -> &'static str {
         match self {
             Status::Ok => "ok",

@@ -51,6 +51,9 @@ pub struct Partial {
     file: File,
     /// Rows already in the file (from earlier runs, when resuming).
     pub rows_done: u64,
+    /// Bytes a resume dropped after those rows: an incomplete last row, or
+    /// a torn row and whatever followed it (a crash's zero-filled block).
+    pub dropped_bytes: u64,
     /// Rows of earlier runs whose status is `ok`.
     pub ok_done: u64,
     /// Wall time of earlier runs (s), up to their last saved progress.
@@ -70,6 +73,29 @@ pub use super::guard::COMPANIONS;
 
 pub fn partial_path(out: &Path) -> PathBuf {
     with_suffix(out, ".partial")
+}
+
+/// Rows a `--resume` of `out` would keep from its partial file: its whole
+/// rows (CSV) or the rows of its whole segments (Parquet). `None` when there
+/// is no readable partial file.
+pub fn resumable_rows(out: &Path) -> Option<u64> {
+    let partial = partial_path(out);
+    let mut f = File::open(&partial).ok()?;
+    let mut r = BufReader::new(&mut f);
+    let mut first = vec![];
+    r.read_until(b'\n', &mut first).ok()?;
+    if first == PARQUET_PARTIAL_MAGIC {
+        let mut header = vec![];
+        r.read_until(b'\n', &mut header).ok()?;
+        let head = (first.len() + header.len()) as u64;
+        drop(r);
+        let frames = super::parquet_file::frames(&mut f, head).ok()?;
+        return Some(frames.iter().map(|fr| fr.rows).sum());
+    }
+    drop(r);
+    complete_prefix(&partial, &first)
+        .ok()
+        .map(|(_, rows, _)| rows)
 }
 
 fn spec_path(out: &Path) -> PathBuf {
@@ -140,6 +166,7 @@ impl Partial {
                 .write(true)
                 .open(&partial)
                 .with_context(|| format!("cannot open {}", partial.display()))?;
+            let dropped_bytes = file.metadata()?.len().saturating_sub(keep);
             file.set_len(keep)?;
             file.seek(SeekFrom::End(0))?;
             return Ok(Opened::Writing(Box::new(Partial {
@@ -151,6 +178,7 @@ impl Partial {
                 fingerprint: fingerprint.to_string(),
                 file,
                 rows_done: rows,
+                dropped_bytes,
                 ok_done: ok,
                 wall_before,
                 sections: vec![],
@@ -208,6 +236,7 @@ impl Partial {
             fingerprint: fingerprint.to_string(),
             file,
             rows_done: 0,
+            dropped_bytes: 0,
             ok_done: 0,
             wall_before: 0.0,
             sections: vec![],
@@ -293,8 +322,11 @@ impl Partial {
     }
 }
 
-/// Length in bytes of the header plus every complete row, the row count and
-/// how many of those rows have status `ok`.
+/// Length in bytes of the header plus every whole row, the row count and
+/// how many of those rows have status `ok`. A row is whole when it ends in
+/// a newline and reads as a row of this table ([`whole_row`]); the first
+/// that does not ends the prefix, so a torn row followed by the zero-filled
+/// block a power cut can leave (a "row" of NULs) is dropped with all after it.
 fn complete_prefix(partial: &Path, header: &[u8]) -> Result<(u64, u64, u64)> {
     let mut r = BufReader::new(
         File::open(partial).with_context(|| format!("cannot read {}", partial.display()))?,
@@ -307,6 +339,7 @@ fn complete_prefix(partial: &Path, header: &[u8]) -> Result<(u64, u64, u64)> {
             "cannot resume: its header differs from this sweep's; run without --resume to start over".into(),
         ));
     }
+    let columns = fields(&line).map_or(0, |f| f.len());
     let status = String::from_utf8_lossy(&line)
         .trim_end()
         .split(',')
@@ -319,13 +352,42 @@ fn complete_prefix(partial: &Path, header: &[u8]) -> Result<(u64, u64, u64)> {
         if n == 0 || line.last() != Some(&b'\n') {
             break;
         }
+        let Some(row) = whole_row(&line, columns, status) else {
+            break;
+        };
         keep += n as u64;
         rows += 1;
-        if let Some(i) = status {
-            ok += (line.split(|&b| b == b',').nth(i) == Some(b"ok")) as u64;
-        }
+        ok += row as u64;
     }
     Ok((keep, rows, ok))
+}
+
+/// The fields of one CSV line (with its newline), or `None` if it is not
+/// one record of UTF-8 text.
+fn fields(line: &[u8]) -> Option<csv::StringRecord> {
+    let mut r = csv::ReaderBuilder::new()
+        .has_headers(false)
+        .from_reader(line);
+    let rec = r.records().next()?.ok()?;
+    r.records().next().is_none().then_some(rec)
+}
+
+/// `Some(is ok)` when `line` is a whole row of a table of `columns`
+/// columns: no NUL byte, one record of that many fields, an integer id
+/// first and a known status in the `status` column.
+fn whole_row(line: &[u8], columns: usize, status: Option<usize>) -> Option<bool> {
+    if line.contains(&0) {
+        return None;
+    }
+    let rec = fields(line).filter(|r| r.len() == columns)?;
+    rec.get(0)?.parse::<u64>().ok()?;
+    match status {
+        Some(i) => {
+            let s = crate::engine::Status::from_name(rec.get(i)?)?;
+            Some(s == crate::engine::Status::Ok)
+        }
+        None => Some(false),
+    }
 }
 
 /// Like [`complete_prefix`] for a Parquet partial file: the length of its

@@ -28,6 +28,10 @@ pub fn run(sweep: &Sweep, opts: &Options, backend: &dyn Backend) -> Result<Summa
         });
     };
     let start_id = lo + out.rows_done;
+    let resumed = opts
+        .resume
+        .then_some((out.rows_done, out.dropped_bytes))
+        .filter(|&(rows, dropped)| rows > 0 || dropped > 0);
     let (ok_before, wall_before) = (out.ok_done, out.wall_before);
     opts.progress(out.rows_done, hi - lo);
     let t0 = Instant::now();
@@ -62,5 +66,6 @@ pub fn run(sweep: &Sweep, opts: &Options, backend: &dyn Backend) -> Result<Summa
         wall_s,
         already_complete: false,
         backend: String::new(),
+        resumed,
     })
 }

@@ -138,6 +138,9 @@ pub struct Summary {
     pub already_complete: bool,
     /// The backend that ran it: its name and adapter.
     pub backend: String,
+    /// A resumed run: the rows kept from earlier runs and the bytes dropped
+    /// after them (an incomplete or torn last row, a zero-filled tail).
+    pub resumed: Option<(u64, u64)>,
 }
 
 impl Sweep {

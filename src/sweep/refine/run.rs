@@ -91,6 +91,10 @@ pub fn run(
         vec![]
     };
     let (wall_before, resumed_from) = (out.wall_before, out.rows_done);
+    let resumed = opts
+        .resume
+        .then_some((out.rows_done, out.dropped_bytes))
+        .filter(|&(rows, dropped)| rows > 0 || dropped > 0);
     let mut refiner = Refiner::with_range(&dims, spec.stride, region);
     let mut level = if lo < hi { refiner.start() } else { vec![] };
     let mut stats: Vec<Level> = vec![];
@@ -184,6 +188,7 @@ pub fn run(
         wall_s,
         already_complete: false,
         backend: String::new(),
+        resumed,
     })
 }
 
