@@ -239,6 +239,7 @@ impl SweepRequest {
         let threads = settings.threads.map(threads).transpose()?;
         sweep.check_overrides(&overrides)?;
         let out = guard::output("--out", &out_given, &sweep.inputs, COMPANIONS)?;
+        let format = TableKind::resolve(settings.format, &out_given)?;
         let solver = Solver::resolve(&sweep.base, &overrides)?;
         let precision = solver.precision;
         if sweep.chains.is_some() {
@@ -250,7 +251,7 @@ impl SweepRequest {
         Ok(SweepRequest {
             sweep,
             out,
-            format: TableKind::resolve(settings.format, &out_given),
+            format,
             out_given,
             backend: settings.backend,
             resume: settings.resume,
@@ -347,12 +348,22 @@ fn trace_output(name: &str, path: &Path) -> Result<PathBuf, InputError> {
         .then(|| name.into())
         .into_iter()
         .collect();
-    guard::output(
+    let checked = guard::output(
         "--trace",
         path,
         &inputs,
         crate::output::publish::ALONE_COMPANIONS,
-    )
+    )?;
+    // Traces are CSV: a name that says otherwise is refused, not filled
+    // with CSV (`--trace w.parquet` wrote 358 MB of CSV into it).
+    if TableKind::from_extension(path) != Some(TableKind::Csv) {
+        return Err(flag(
+            "--trace",
+            &path.display().to_string(),
+            "a name ending in .csv (traces are written as CSV)",
+        ));
+    }
+    Ok(checked)
 }
 
 /// A checked scene, ready to run.

@@ -682,6 +682,131 @@ fn a_granular_chain_runs_with_its_probes_walls_and_record() {
 /// a short chain while its last bead still rebounds from the wall: the
 /// table names that wall impulse partial; with a duration past the rebound
 /// it does not.
+/// An output's name says its format: an unknown extension is refused
+/// unless `--format` names one, a `--format` that contradicts the name is
+/// refused, and a trace (CSV) must be named `.csv`.
+#[test]
+fn output_names_and_formats_must_agree() {
+    let dir = tempfile::tempdir().unwrap();
+    let sweep = write(
+        &dir,
+        "s.toml",
+        "[scene]\nballs = 3\nvelocity = [1.0, 0, 0]\n[[axis]]\nparam = \"gap\"\nvalues = [0.0, 1e-6]\n",
+    );
+    let at = |name: &str| dir.path().join(name).display().to_string();
+    let e = bad_input(&["sweep", &sweep, "--out", &at("x.xlsx")]);
+    assert!(e.contains("a name ending in .csv or .parquet"), "{e}");
+    assert!(!dir.path().join("x.xlsx").exists());
+    let e = bad_input(&[
+        "sweep",
+        &sweep,
+        "--out",
+        &at("x.csv"),
+        "--format",
+        "parquet",
+    ]);
+    assert!(e.contains("the format"), "{e}");
+    success(&["sweep", &sweep, "--out", &at("x.txt"), "--format", "csv"]);
+    let text = std::fs::read_to_string(dir.path().join("x.txt")).unwrap();
+    assert!(text.starts_with("id,gap,"), "{text}");
+    let e = bad_input(&["run", "cradle-1", "--trace", &at("w.parquet")]);
+    assert!(e.contains("a name ending in .csv"), "{e}");
+    assert!(!dir.path().join("w.parquet").exists());
+}
+
+/// Rows are never labelled with values they were not computed with: an
+/// axis on a quantity the base scene's [pattern], [taper] or [impurity]
+/// sets is refused (it used to give identical rows), while an axis that
+/// still changes the chain (the taper's first radius, another bead's mass)
+/// runs. `[impurity]` with beads and no values is refused too.
+#[test]
+fn an_axis_the_base_scene_overrides_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let chain = "balls = 100\nradius = 0.005\n[launch]\nballs = 1\nvelocity = 0.1\n";
+    let o = dir.path().join("o.csv");
+    let o = o.to_str().unwrap();
+    for (extra, param, values, refused) in [
+        (
+            "[pattern]\nradius = [0.005, 0.003]\n",
+            "radius",
+            "[0.004, 0.006]",
+            true,
+        ),
+        (
+            "[pattern]\nmass = [0.004, 0.001]\n",
+            "density",
+            "[7000.0, 8000.0]",
+            true,
+        ),
+        (
+            "[pattern]\nmass = [0.004, 0.001]\n",
+            "mass[50]",
+            "[0.002, 0.003]",
+            true,
+        ),
+        (
+            "[taper]\nratio = 0.01\n",
+            "radius[1]",
+            "[0.004, 0.006]",
+            true,
+        ),
+        ("[taper]\nratio = 0.01\n", "radius", "[0.004, 0.006]", false),
+        (
+            "[impurity]\nbeads = [50]\nmass = 0.01\n",
+            "mass[50]",
+            "[0.002, 0.003]",
+            true,
+        ),
+        (
+            "[impurity]\nbeads = [50]\nmass = 0.01\n",
+            "mass[49]",
+            "[0.002, 0.003]",
+            false,
+        ),
+    ] {
+        let scene = write(&dir, "c.toml", &format!("{chain}{extra}"));
+        let sweep = write(
+            &dir,
+            "s.toml",
+            &format!("scene = \"{scene}\"\n[[axis]]\nparam = \"{param}\"\nvalues = {values}\n"),
+        );
+        let out = cradle()
+            .args(["sweep", &sweep, "--out", o, "--backend", "cpu"])
+            .output()
+            .unwrap();
+        let e = String::from_utf8_lossy(&out.stderr);
+        if refused {
+            assert_eq!(out.status.code(), Some(2), "{extra} {param}: {e}");
+            assert!(e.contains("make the same scene"), "{extra} {param}: {e}");
+        } else {
+            assert!(out.status.success(), "{extra} {param}: {e}");
+        }
+    }
+    let scene = write(
+        &dir,
+        "i.toml",
+        &format!("{chain}[impurity]\nbeads = [50]\n"),
+    );
+    let e = bad_input(&["run", &scene]);
+    assert!(e.contains("[impurity] with beads and no values"), "{e}");
+}
+
+/// A user step far too large for a run of fewer than 16 steps (between the
+/// run's own non-finite checks) ends `non_finite`, never `ok` with empty
+/// or infinite velocities.
+#[test]
+fn a_chain_that_blows_up_between_checks_is_non_finite() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = write(
+        &dir,
+        "c.toml",
+        "balls = 100\nradius = 0.005\n[launch]\nballs = 1\nvelocity = 1.0\n[stop]\nduration = 3e-3\n[solver]\ndt = 2e-4\n",
+    );
+    let text = String::from_utf8(success(&["run", &scene, "--format", "csv"])).unwrap();
+    let row = text.lines().nth(1).unwrap();
+    assert!(row.starts_with("non_finite,"), "{text}");
+}
+
 #[test]
 fn a_wall_impulse_cut_off_by_the_default_end_says_partial() {
     let dir = tempfile::tempdir().unwrap();

@@ -864,6 +864,12 @@ fn a_point_list_runs_one_scene_per_row_and_bad_tables_say_where() {
         ("gap,mass[9]\n0,0.1\n", "an index in 0 ..= 4"),
         ("balls,gap\n2.5,0\n", "whole number"),
         ("mass,mass[1]\n1,1\n", "one column"),
+        // A row that turns the cradle into a chain (a taper: it ran 5-ball
+        // "chains" on the cradle engine) is refused.
+        (
+            "gap,taper.ratio\n0,0.1\n",
+            "p.csv:2: `taper.ratio` = 0.1: a scene like the base scene",
+        ),
     ] {
         fs::write(d.join("bad.p.csv"), table).unwrap();
         let b = d.join("b.toml");
@@ -881,6 +887,35 @@ fn a_point_list_runs_one_scene_per_row_and_bad_tables_say_where() {
         assert_eq!(o.status.code(), Some(2), "{table:?}: {e}");
         assert!(e.contains(needle), "{table:?}: {e:?} lacks {needle:?}");
     }
+    // 65 balls on a launched cradle's base made a chain that the cradle
+    // engine ran and panicked on (exit 101): refused like an axis value.
+    fs::write(
+        d.join("launch.toml"),
+        "balls = 5\n[launch]\nballs = 1\nvelocity = 1.0\n",
+    )
+    .unwrap();
+    fs::write(d.join("n.p.csv"), "balls,gap\n5,0\n65,0\n").unwrap();
+    let b = d.join("n.toml");
+    fs::write(
+        &b,
+        "scene = \"launch.toml\"\n[points]\nfile = \"n.p.csv\"\n",
+    )
+    .unwrap();
+    let o = cradle()
+        .args([
+            "sweep",
+            b.to_str().unwrap(),
+            "--out",
+            d.join("n.csv").to_str().unwrap(),
+        ])
+        .output()
+        .unwrap();
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{e}");
+    assert!(
+        e.contains("n.p.csv:3: `balls` = 65: a scene like the base scene"),
+        "{e}"
+    );
 }
 
 #[test]

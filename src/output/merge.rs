@@ -114,17 +114,13 @@ pub fn merge(inputs: &[PathBuf], out: &Path) -> Result<u64> {
     } else {
         TableKind::Csv
     };
-    if TableKind::resolve(None, out) != want {
+    if TableKind::from_extension(out) != Some(want) {
         return Err(InputError::Flag {
             flag: "--out".into(),
             value: out.display().to_string(),
             allowed: format!(
                 "a name ending in {}: the parts are {}",
-                if formats[0] {
-                    ".parquet"
-                } else {
-                    ".csv (or any name not ending in .parquet)"
-                },
+                if formats[0] { ".parquet" } else { ".csv" },
                 if formats[0] { "Parquet" } else { "CSV" }
             ),
         }

@@ -214,6 +214,22 @@ impl SceneSpec {
             });
         };
         let beads = bead_list(c, "impurity.beads", list, n)?;
+        if [
+            imp.radius,
+            imp.density,
+            imp.mass,
+            imp.young_modulus,
+            imp.poisson_ratio,
+        ]
+        .iter()
+        .all(Option::is_none)
+        {
+            return Err(c.err(
+                "impurity",
+                "[impurity] with beads and no values",
+                "at least one of radius, density, mass, young_modulus, poisson_ratio for the listed beads",
+            ));
+        }
         if imp.mass.is_some() && imp.density.is_some() {
             return Err(c.err(
                 "impurity.density",

@@ -207,6 +207,30 @@ fn check_row(
             ));
         }
     }
+    // A row must make the same kind of scene as the base (an axis or a
+    // sample value that turns a cradle into a chain is refused the same way).
+    if let Ok(scene) = s.validate() {
+        if scene.chain.is_some() != base.chain.is_some() {
+            let k = params
+                .iter()
+                .zip(row)
+                .position(|(p, v)| {
+                    let mut one = spec.clone();
+                    axis::apply(&mut one, base, p, v);
+                    one.validate()
+                        .is_ok_and(|o| o.chain.is_some() != base.chain.is_some())
+                })
+                .unwrap_or(0);
+            return Err(invalid(
+                path,
+                line,
+                &header[k],
+                row[k].to_string(),
+                crate::sweep::mixed_sweep(base.chain.is_some()),
+            ));
+        }
+        return Ok(());
+    }
     if let Err(e) = s.validate() {
         let alone = params.iter().zip(row).position(|(p, v)| {
             let mut one = spec.clone();

@@ -324,6 +324,13 @@ pub fn finish<R: Real>(
         let scale = b.mass.iter().sum::<f64>() * b.v_scale();
         ((p(&st.v) - want) / scale).abs()
     };
+    // The run's own check looks every CHECK_EVERY steps: a run that ends
+    // (or blows up) between two looks is caught here, so no row is `ok`
+    // with NaN or infinite velocities (a user dt far too large over a few
+    // steps did that).
+    if status != Status::Invalid && !st.v.iter().chain(&st.p).all(|x| x.is_finite()) {
+        status = Status::NonFinite;
+    }
     if status == Status::Ok {
         if max_ratio > MAX_OVERLAP_RATIO {
             status = Status::OverlapInvalid;

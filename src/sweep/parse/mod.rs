@@ -314,9 +314,62 @@ impl Ctx<'_> {
                     ));
                 }
             }
+            if let Some((v1, v2)) = unused(axes, k, scene_spec, base) {
+                return Err(cx.invalid(
+                    *line,
+                    &a.name,
+                    format!("{v1} and {v2}"),
+                    "an axis whose values change the scene: these make the same scene (the base scene's [pattern], [taper] or [impurity] sets this quantity, or another key decides it), so the rows would be labelled with values never used; sweep the key that sets it (e.g. pattern.radius[0], impurity.mass)".to_string(),
+                ));
+            }
         }
         Ok(())
     }
+}
+
+/// Two distinct values of axis `k` (its first and last) when they make the
+/// same checked scene wherever both are valid — at the base scene and at
+/// the first and last value of each other axis — and are valid somewhere:
+/// the axis would label rows with values that were never used.
+fn unused(
+    axes: &[(Option<usize>, Axis)],
+    k: usize,
+    spec: &SceneSpec,
+    base: &Scene,
+) -> Option<(Value, Value)> {
+    let a = &axes[k].1;
+    if a.param.name == "balls" || a.values.len() < 2 {
+        return None;
+    }
+    let (v1, v2) = (a.values.get(0), a.values.get(a.values.len() - 1));
+    if v1 == v2 {
+        return None;
+    }
+    let mut contexts: Vec<Option<(&axis::Param, Value)>> = vec![None];
+    for (j, (_, b)) in axes.iter().enumerate() {
+        if j != k && !b.values.is_empty() {
+            contexts.push(Some((&b.param, b.values.get(0))));
+            contexts.push(Some((&b.param, b.values.get(b.values.len() - 1))));
+        }
+    }
+    let mut compared = false;
+    for c in contexts {
+        let at = |v: &Value| {
+            let mut s = spec.clone();
+            if let Some((p, w)) = &c {
+                axis::apply(&mut s, base, p, w);
+            }
+            axis::apply(&mut s, base, &a.param, v);
+            s.validate().ok()
+        };
+        if let (Some(x), Some(y)) = (at(&v1), at(&v2)) {
+            if x != y {
+                return None;
+            }
+            compared = true;
+        }
+    }
+    compared.then_some((v1, v2))
 }
 
 /// Largest chain length over the sweep: the number of `v_i` columns.
