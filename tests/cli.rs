@@ -682,6 +682,59 @@ fn a_granular_chain_runs_with_its_probes_walls_and_record() {
 /// a short chain while its last bead still rebounds from the wall: the
 /// table names that wall impulse partial; with a duration past the rebound
 /// it does not.
+/// A newcomer's slips get a pointer: a near built-in name is suggested, a
+/// walled chain's momentum error says why it is not there instead of NaN,
+/// and a plot of a column that is empty in every row is refused.
+#[test]
+fn slips_get_a_pointer_not_a_nan() {
+    let e = bad_input(&["run", "cradle1"]);
+    assert!(e.contains("did you mean `cradle-1`?"), "{e}");
+    let dir = tempfile::tempdir().unwrap();
+    let rest = write(
+        &dir,
+        "r.toml",
+        "balls = 30\nradius = 0.005\n[walls]\nleft = true\nright = true\nprecompression = 10.0\n",
+    );
+    let e = bad_input(&["run", &rest]);
+    assert!(e.contains("a chain needs something to move it"), "{e}");
+    let scene = write(
+        &dir,
+        "w.toml",
+        "balls = 30\nradius = 0.005\n[walls]\nright = true\n[launch]\nballs = 1\nvelocity = 0.1\n",
+    );
+    let text = String::from_utf8(success(&["run", &scene])).unwrap();
+    assert!(
+        text.contains("momentum_error     n/a (walls take momentum)"),
+        "{text}"
+    );
+    assert!(!text.contains("NaN"), "{text}");
+    let sweep = write(
+        &dir,
+        "s.toml",
+        &format!("scene = \"{scene}\"\n[[axis]]\nparam = \"launch.velocity\"\nvalues = [0.1, 0.2]\n[[axis]]\nparam = \"walls.young_modulus\"\nvalues = [1e11, 2e11]\n"),
+    );
+    let table = dir.path().join("t.csv").display().to_string();
+    success(&["sweep", &sweep, "--out", &table]);
+    let png = dir.path().join("m.png").display().to_string();
+    let e = bad_input(&[
+        "plot",
+        &table,
+        "--x",
+        "launch.velocity",
+        "--y",
+        "walls.young_modulus",
+        "--z",
+        "momentum_error",
+        "--out",
+        &png,
+    ]);
+    assert!(
+        e.contains("column `momentum_error` has no value in any row"),
+        "{e}"
+    );
+    assert!(!std::path::Path::new(&png).exists());
+}
+
 /// An output's name says its format: an unknown extension is refused
 /// unless `--format` names one, a `--format` that contradicts the name is
 /// refused, and a trace (CSV) must be named `.csv`.

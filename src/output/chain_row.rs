@@ -216,8 +216,17 @@ pub fn table(name: &str, b: &Beads, o: &ChainOutcome) -> String {
     }
     let _ = writeln!(s, "fragments          {}", o.fragments);
     let _ = writeln!(s, "energy_error       {:.3e}  (relative)", o.energy_error);
-    let _ = writeln!(s, "momentum_error     {:.3e}  (relative)", o.momentum_error);
-    let _ = writeln!(s, "max_overlap_ratio  {:.3e}", o.max_overlap_ratio);
+    if b.left_wall || b.right_wall {
+        // A wall takes momentum: there is no conservation to check.
+        let _ = writeln!(s, "momentum_error     n/a (walls take momentum)");
+    } else {
+        let _ = writeln!(s, "momentum_error     {:.3e}  (relative)", o.momentum_error);
+    }
+    let _ = writeln!(
+        s,
+        "max_overlap_ratio  {:.3e}  (largest overlap / the smaller radius of its contact)",
+        o.max_overlap_ratio
+    );
     let _ = writeln!(
         s,
         "t_end              {:.6e} s, {} steps (dt = {:.4e} s)",

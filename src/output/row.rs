@@ -403,7 +403,15 @@ pub fn table(name: &str, v_in: f64, v0: &[f64], o: &Outcome, pendulum: bool) -> 
     let _ = writeln!(s);
     let _ = writeln!(s, "ejected          {}", o.ejected);
     let _ = writeln!(s, "energy_error     {:.3e}  (relative)", o.energy_error);
-    let _ = writeln!(s, "momentum_error   {:.3e}  (relative)", o.momentum_error);
+    if o.momentum_error.is_nan() {
+        // A pendulum's balls are pulled by their strings: no conservation.
+        let _ = writeln!(
+            s,
+            "momentum_error   n/a (pendulum: the strings take momentum)"
+        );
+    } else {
+        let _ = writeln!(s, "momentum_error   {:.3e}  (relative)", o.momentum_error);
+    }
     let _ = writeln!(
         s,
         "energy_left      {:.9}  (final / initial)",

@@ -276,6 +276,18 @@ pub fn plot(input: &Path, a: &Args, out: &Path) -> Result<()> {
     );
     let ((xs, xcats), (ys, ycats)) = (coords(&t, ix), coords(&t, iy));
     let zs = t.numbers(iz)?;
+    if !zs.iter().any(|z| z.is_finite()) {
+        // A blank map with a 0–1 colour bar would look like data.
+        return Err(InputError::Data {
+            path: input.into(),
+            what: format!(
+                "column `{}` has no value in any row{} (e.g. momentum_error of walled chains): nothing to draw",
+                a.z,
+                if a.wheres.is_empty() { "" } else { " kept by --where" }
+            ),
+        }
+        .into());
+    }
     let (ux, uy) = (distinct(&xs), distinct(&ys));
     for (u, c) in [(&ux, &a.x), (&uy, &a.y)] {
         if u.is_empty() {

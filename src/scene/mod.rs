@@ -236,16 +236,25 @@ impl Scene {
         }
         match builtin::find(name_or_path) {
             Some(b) => b.spec()?.validate(),
-            None => Err(InputError::Read {
-                path: path.to_path_buf(),
-                error: std::io::Error::new(
-                    std::io::ErrorKind::NotFound,
-                    format!(
-                        "no such file, nor a built-in scene (built-ins: {})",
-                        builtin::names().join(", ")
+            None => {
+                // `cradle1` for `cradle-1`: the nearest built-in name, if near.
+                let near = builtin::names()
+                    .into_iter()
+                    .map(|n| (strsim::levenshtein(name_or_path, n), n))
+                    .min()
+                    .filter(|(d, _)| *d <= 2)
+                    .map_or(String::new(), |(_, n)| format!("did you mean `{n}`? "));
+                Err(InputError::Read {
+                    path: path.to_path_buf(),
+                    error: std::io::Error::new(
+                        std::io::ErrorKind::NotFound,
+                        format!(
+                            "no such file, nor a built-in scene ({near}built-ins: {})",
+                            builtin::names().join(", ")
+                        ),
                     ),
-                ),
-            }),
+                })
+            }
         }
     }
 

@@ -220,13 +220,19 @@ impl SceneSpec {
             // A pulse excites a chain at rest.
             (None, None) if self.pulse.is_some() => vec![0.0; n],
             (None, None) => {
+                // A chain with nothing to move it would stay at rest: say
+                // what can move it (a pulse, unlike a cradle).
+                let help = if self.is_chain(n) {
+                    "a chain needs something to move it: `velocity = [...]` (m/s, one per bead), a `[launch]` table or a `[pulse]` (with precompression alone it stays at rest)"
+                } else {
+                    "give `velocity = [...]` (m/s, one per ball) or a `[launch]` table"
+                };
                 return Err(InputError::Missing {
                     origin: self.origin.clone(),
                     line: None,
                     key: "velocity".into(),
-                    help: "give `velocity = [...]` (m/s, one per ball) or a `[launch]` table"
-                        .into(),
-                })
+                    help: help.into(),
+                });
             }
             (Some(v), None) => c.per(
                 "velocity",
