@@ -115,12 +115,12 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 eprintln!("cradle: {out} is already complete; nothing to resume");
             } else {
                 eprintln!(
-                    "cradle: {} scenes ({} ok, {} not ok) in {:.2} s, {:.0} scenes/s, backend {} -> {out}",
+                    "cradle: {} scenes ({} ok, {} not ok) in {:.2} s, {}, backend {} -> {out}",
                     s.scenes,
                     s.ok,
                     s.scenes - s.ok,
                     s.wall_s,
-                    s.scenes as f64 / s.wall_s.max(1e-9),
+                    hertz_cradle::progress::rate(s.scenes as f64 / s.wall_s.max(1e-9)),
                     s.backend,
                 );
             }
@@ -168,6 +168,13 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 std::slice::from_ref(&table),
                 hertz_cradle::output::publish::ALONE_COMPANIONS,
             )?;
+            if !table.exists() {
+                return Err(hertz_cradle::InputError::Read {
+                    path: table,
+                    error: std::io::Error::new(std::io::ErrorKind::NotFound, "no such file"),
+                }
+                .into());
+            }
             let Some(g) = hertz_cradle::output::fill::grid(&table)? else {
                 return Err(hertz_cradle::InputError::Data {
                     path: table,

@@ -8,6 +8,18 @@ use std::sync::Arc;
 
 use crate::sweep::session::{OnProgress, Progress};
 
+/// Scenes per second as a person reads them: "6418 scenes/s", "12.5
+/// scenes/s", "0.31 scenes/s" (indicatif's own printed "6,418.4702/s", and
+/// a sweep of slow chains "0 scenes/s").
+pub fn rate(per_s: f64) -> String {
+    match per_s {
+        r if !r.is_finite() => "- scenes/s".to_string(),
+        r if r >= 100.0 => format!("{r:.0} scenes/s"),
+        r if r >= 10.0 => format!("{r:.1} scenes/s"),
+        r => format!("{r:.2} scenes/s"),
+    }
+}
+
 /// A bar that draws itself as the callback is told; cleared when dropped.
 pub struct Bar {
     bar: indicatif::ProgressBar,
@@ -20,8 +32,16 @@ impl Bar {
             let b = indicatif::ProgressBar::new(0);
             b.set_style(
                 indicatif::ProgressStyle::with_template(
-                    "{bar:40} {pos}/{len} scenes  {per_sec}  ETA {eta}",
+                    "{bar:40} {pos}/{len} scenes  {rate}  ETA {eta}",
                 )
+                .map(|st| {
+                    st.with_key(
+                        "rate",
+                        |s: &indicatif::ProgressState, w: &mut dyn std::fmt::Write| {
+                            let _ = write!(w, "{}", rate(s.per_sec()));
+                        },
+                    )
+                })
                 .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
             );
             b

@@ -1213,6 +1213,8 @@ fn explore_refuses_unusable_tables_with_exit_2() {
         ("header.csv", Some("id,mass,status\n")),
         ("fake.csv", Some("hello world\n")),
         ("ragged.csv", Some("id,a\n0,1\n1\n")),
+        // The Parquet reader's "Corrupt footer" named no file, exit 1.
+        ("corrupt.parquet", Some("PAR1 not a parquet file PAR1")),
     ];
     for (name, text) in cases {
         let p = d.path().join(name);
@@ -1227,6 +1229,17 @@ fn explore_refuses_unusable_tables_with_exit_2() {
         assert_eq!(o.status.code(), Some(2), "{name}: {}", stderr(&o));
         assert!(stderr(&o).contains(name), "{name}: {}", stderr(&o));
     }
+    // `fill` of a missing table says so (it said "not a refined sweep's table").
+    let e = refused(
+        &[
+            "fill",
+            s(&d.path().join("missing.csv")),
+            "--out",
+            s(&d.path().join("f.csv")),
+        ],
+        "no such file",
+    );
+    assert!(e.contains("missing.csv"), "{e}");
 }
 
 /// An output directory that cannot be written (made immutable with

@@ -176,8 +176,15 @@ fn load(path: &Path) -> Result<Data> {
             "the table has no sidecar naming its sweep file".to_string(),
         ),
         Some(f) => {
-            let near = path.parent().unwrap_or(Path::new(".")).join(f);
-            let found = [PathBuf::from(f), near].into_iter().find(|p| p.is_file());
+            // As named (from where the sweep ran), then from the table's
+            // folder, then its file name beside the table (`cradle sweep
+            // run/s.toml --out run/t.csv`, explored from inside run/).
+            let dir = path.parent().unwrap_or(Path::new("."));
+            let beside = Path::new(f).file_name().map(|n| dir.join(n));
+            let found = [Some(PathBuf::from(f)), Some(dir.join(f)), beside]
+                .into_iter()
+                .flatten()
+                .find(|p| p.is_file());
             let recorded = sc.as_ref().map(|s| &s.sweep);
             match found.map(|p| Sweep::load(&p)) {
                 // The file must still resolve to the sweep the sidecar
@@ -190,7 +197,7 @@ fn load(path: &Path) -> Result<Data> {
                 Some(Err(e)) => (None, format!("the sweep file {f}: {e}")),
                 None => (
                     None,
-                    format!("the sweep file {f} named in the sidecar is not found (run explore from where the sweep ran)"),
+                    format!("the sweep file {f} named in the sidecar is not found (as named, from the table's folder, or beside the table): run explore from where the sweep ran"),
                 ),
             }
         }

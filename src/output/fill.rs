@@ -61,7 +61,13 @@ pub fn csv_of(table: &Path) -> Result<Box<dyn Read>> {
             crate::error::MAX_TABLE_BYTES,
         )?));
     }
-    let (header, rows) = super::parquet_file::read_text(table)?;
+    // A corrupt file is the input's fault: name it (exit 2), not the
+    // Parquet reader's words alone.
+    let (header, rows) =
+        super::parquet_file::read_text(table).map_err(|e| crate::InputError::Data {
+            path: table.to_path_buf(),
+            what: format!("not a readable Parquet table ({e:#})"),
+        })?;
     let mut bytes = Vec::new();
     for row in std::iter::once(&header).chain(&rows) {
         for (k, f) in row.iter().enumerate() {
