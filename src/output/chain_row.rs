@@ -192,6 +192,12 @@ pub fn table(name: &str, b: &Beads, o: &ChainOutcome) -> String {
         let _ = writeln!(s, "pulse_speed        {:.6} m/s", o.pulse_speed);
         let _ = writeln!(s, "pulse_width        {:.4} beads (FWHM)", o.pulse_width);
     }
+    if o.left_wall.is_some() || o.right_wall.is_some() {
+        let _ = writeln!(
+            s,
+            "walls              (impulse: ∫(F − F0) dt, the push a wall takes beyond its preload; positive)"
+        );
+    }
     for (side, w) in [("left", &o.left_wall), ("right", &o.right_wall)] {
         if let Some(w) = w {
             let _ = writeln!(
@@ -210,7 +216,7 @@ pub fn table(name: &str, b: &Beads, o: &ChainOutcome) -> String {
     if !o.probes.is_empty() {
         let _ = writeln!(
             s,
-            "energy             reflected {:.6}, transmitted {:.6}, left {:.6}",
+            "energy             reflected {:.6}, transmitted {:.6}, left {:.6}  (fractions of the energy put in: before the first probe, after the last, between)",
             o.energy_reflected, o.energy_transmitted, o.energy_left
         );
     }

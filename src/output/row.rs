@@ -401,7 +401,11 @@ pub fn table(name: &str, v_in: f64, v0: &[f64], o: &Outcome, pendulum: bool) -> 
         let _ = writeln!(s);
     }
     let _ = writeln!(s);
-    let _ = writeln!(s, "ejected          {}", o.ejected);
+    let _ = writeln!(
+        s,
+        "ejected          {}  (balls leaving the far end faster than half the fastest, in order)",
+        o.ejected
+    );
     let _ = writeln!(s, "energy_error     {:.3e}  (relative)", o.energy_error);
     if o.momentum_error.is_nan() {
         // A pendulum's balls are pulled by their strings: no conservation.
