@@ -48,7 +48,11 @@ def _document(spec: Spec, what: str) -> Tuple[Optional[str], Optional[str], bool
     if isinstance(spec, os.PathLike):
         return os.fspath(spec), None, False, os.fspath(spec)
     if isinstance(spec, str):
-        # TOML text has a newline or a `=`; a path or a name has neither.
+        # A path: an existing file, or a name ending in .toml (a folder may
+        # hold a `=`: runs/v=0.1/sweep.toml). TOML text: a newline or a `=`
+        # in anything else. A built-in scene name has neither.
+        if os.path.isfile(spec) or (spec.endswith(".toml") and "\n" not in spec):
+            return spec, None, False, spec
         if "\n" in spec or "=" in spec:
             return None, spec, False, f"<{what} string>"
         return spec, None, False, spec

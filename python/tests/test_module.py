@@ -90,6 +90,12 @@ def test_a_dict_a_toml_string_and_a_file_are_the_same_sweep(tmp_path):
     c = hc.sweep(SMALL, backend="cpu", progress=False)
     assert a.num_rows == 12 and a.equals(b) and a.equals(c)
     assert a.column("gap").to_pylist()[:4] == [0.0, 2e-5 / 3, 2 * 2e-5 / 3, 2e-5]
+    # A path whose folder holds a `=` is a path, not TOML text (it was read
+    # as TOML and failed).
+    run = tmp_path / "v=0.1"
+    run.mkdir()
+    (run / "sweep.toml").write_text(SMALL_TOML)
+    assert hc.sweep(str(run / "sweep.toml"), backend="cpu", progress=False).equals(a)
 
 
 def test_bad_input_raises_value_error_with_the_clis_message(tmp_path):
