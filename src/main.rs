@@ -59,6 +59,24 @@ fn stop_on_signal() -> std::sync::Arc<std::sync::atomic::AtomicBool> {
     stop
 }
 
+/// Ctrl-C (or SIGTERM, SIGHUP) during `run --trace FILE`: the trace being
+/// written (`FILE.tmp`) and its lock are removed, FILE is left as it was,
+/// and the run exits 130 saying so (it left `FILE.tmp` behind).
+fn forget_trace_on_signal(path: &std::path::Path) {
+    use hertz_cradle::output::guard::with_suffix;
+    let (tmp, lock) = (
+        with_suffix(path, hertz_cradle::output::publish::TMP),
+        with_suffix(path, ".lock"),
+    );
+    let shown = path.display().to_string();
+    let _ = ctrlc::set_handler(move || {
+        let _ = std::fs::remove_file(&tmp);
+        let _ = std::fs::remove_file(&lock);
+        eprintln!("\ncradle: interrupted: no trace written ({shown} is as it was)");
+        std::process::exit(130);
+    });
+}
+
 fn is_broken_pipe(e: &anyhow::Error) -> bool {
     e.chain().any(|c| {
         c.downcast_ref::<std::io::Error>()
@@ -252,6 +270,9 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         } => {
             let cfg = RunRequest::from_name(&scene, &run_settings(trace, trace_dt, &solver))
                 .map_err(|e| e.into_anyhow())?;
+            if let Some((path, _)) = &cfg.trace {
+                forget_trace_on_signal(path);
+            }
             if let Some(beads) = &cfg.beads {
                 let o = cfg.run_chain().map_err(|e| e.into_anyhow())?;
                 return print_chain(&cfg.name, beads, &o, format);

@@ -325,6 +325,41 @@ fn ctrl_c_keeps_the_rows_says_how_to_continue_and_resume_completes_them() {
     }
 }
 
+/// Ctrl-C during `run --trace FILE`: the trace being written and its lock
+/// are removed (`FILE.tmp` was left behind), the run says so and exits 130.
+#[test]
+fn ctrl_c_during_a_trace_leaves_no_temporary_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let scene = d.join("big.toml");
+    fs::write(
+        &scene,
+        "balls = 1000\nradius = 0.005\n[launch]\nballs = 1\nvelocity = 0.1\n[record]\nstride = 1\nevery = 4e-6\n[stop]\nduration = 0.02\n",
+    )
+    .unwrap();
+    let trace = d.join("t.csv");
+    let tmp = d.join("t.csv.tmp");
+    let child = Std::new(assert_cmd::cargo::cargo_bin("cradle"))
+        .args(["run", s(&scene), "--trace", s(&trace)])
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let t0 = Instant::now();
+    while fs::metadata(&tmp).map_or(0, |m| m.len()) == 0 && t0.elapsed() < Duration::from_secs(60) {
+        std::thread::sleep(Duration::from_millis(1));
+    }
+    Std::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .unwrap();
+    let o = child.wait_with_output().unwrap();
+    let e = stderr(&o);
+    assert_eq!(o.status.code(), Some(130), "{e}");
+    assert!(e.contains("interrupted: no trace written"), "{e}");
+    assert!(!tmp.exists() && !trace.exists() && !d.join("t.csv.lock").exists());
+}
+
 /// What ext4 can leave after a power cut: the last row torn, then a block
 /// of zeros (with or without a newline in it). `--resume` keeps only whole
 /// rows, says how many bytes it dropped, and completes the same bytes.
