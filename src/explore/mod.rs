@@ -647,8 +647,36 @@ async fn scene_toml(
             format!("scenes cannot be exported: {}", d.sweep_problem),
         );
     };
+    // The sweep's solver flags go into the scene's [solver], so that
+    // `cradle run` on it gives this row (they were left out: 18–21 cells
+    // differed under --method/--tolerance/--precision).
+    let o = &d.overrides;
+    let with_flags = |mut s: crate::scene::SceneSpec| {
+        use crate::choice::Choice;
+        if o.method.is_some() || o.precision.is_some() || o.tolerance.is_some() {
+            let solver = s.solver.get_or_insert_with(Default::default);
+            if let Some(m) = o.method {
+                solver.method = Some(Choice::name(m).to_string());
+            }
+            if let Some(p) = o.precision {
+                solver.precision = Some(Choice::name(p).to_string());
+            }
+            if let Some(t) = o.tolerance {
+                solver.tolerance = Some(t);
+                solver.dt = None;
+            }
+        }
+        s
+    };
+    let model = match o.model {
+        Some(m) if m != crate::engine::Model::Hertz => {
+            format!("# run it with --model {}\n", crate::choice::Choice::name(m))
+        }
+        _ => String::new(),
+    };
     match sweep
         .scene_spec(id)
+        .map(with_flags)
         .and_then(|s| toml::to_string(&s).map_err(|e| anyhow::anyhow!(e)))
     {
         Ok(text) => (
@@ -659,7 +687,7 @@ async fn scene_toml(
                     format!("attachment; filename=\"scene_{id}.toml\""),
                 ),
             ],
-            format!("# scene {id} of {}\n{text}", d.name),
+            format!("# scene {id} of {}\n{model}{text}", d.name),
         )
             .into_response(),
         Err(e) => err(StatusCode::BAD_REQUEST, format!("{e:#}")),

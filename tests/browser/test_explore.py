@@ -8,6 +8,8 @@ Needs /usr/bin/chromium (apt-get install chromium). Writes the page's
 screenshot to results/explorer.png (EXPLORER_SCREENSHOT overrides)."""
 
 import contextlib
+import csv
+import io
 import json
 import os
 import re
@@ -467,3 +469,31 @@ def test_the_map_has_ticks_a_colour_bar_and_zooms(server):
         page.mouse.click(sb["x"] + 0.5 * sb["width"], sb["y"] + 0.5 * sb["height"])
         page.wait_for_function("document.querySelector('[data-testid=phase-map]').dataset.brushed === undefined")
         assert not errors, errors
+
+
+def test_an_exported_scene_runs_to_its_row_and_a_table_finds_its_sweep_beside_it(tmp_path):
+    """The exported scene TOML carries the sweep's --method/--tolerance, so
+    `cradle run` on it gives the table's row (it left them out); a table
+    explored from its own folder finds the sweep file beside it (the
+    sidecar names it as the sweep ran, from the folder above)."""
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / "s.toml").write_text("[scene]\nballs = 5\nvelocity = [1.0, 0, 0, 0, 0]\n"
+                                "[[axis]]\nparam = \"mass[2]\"\nlogspace = [0.01, 1.0, 6]\n")
+    subprocess.run([cradle_bin(), "sweep", "run/s.toml", "--out", "run/t.csv", "--backend", "cpu",
+                    "--method", "verlet", "--tolerance", "1e-4"], check=True, capture_output=True,
+                   cwd=tmp_path)
+    rows = list(csv.DictReader(open(run / "t.csv")))
+    with serving(run, run / "t.csv") as url:
+        status, meta = get(url + "api/meta")
+        assert status == 200 and meta["scenes"], meta
+        with urllib.request.urlopen(url + "api/scene.toml?id=3", timeout=30) as r:
+            text = r.read().decode()
+    assert 'method = "verlet"' in text and "tolerance = 0.0001" in text, text
+    scene = tmp_path / "scene3.toml"
+    scene.write_text(text)
+    out = subprocess.run([cradle_bin(), "run", scene, "--format", "csv"], check=True,
+                         capture_output=True, text=True).stdout
+    mine = next(csv.DictReader(io.StringIO(out)))
+    for k in ["v_0", "v_1", "v_2", "v_3", "v_4", "steps", "ejected"]:
+        assert mine[k] == rows[3][k], (k, mine[k], rows[3][k])
