@@ -381,6 +381,9 @@ pub struct RunRequest {
     pub beads: Option<Beads>,
     /// The recorded beads of a chain's trace.
     pub trace_beads: Vec<usize>,
+    /// A chain's controlled run, when checking its trace's size needed it
+    /// (`run_chain` reports it instead of running it again).
+    ran: Option<ChainOutcome>,
 }
 
 impl RunRequest {
@@ -436,6 +439,7 @@ impl RunRequest {
             trace,
             beads: None,
             trace_beads: vec![],
+            ran: None,
         })
     }
 
@@ -455,7 +459,7 @@ impl RunRequest {
             return Err(flag("scene", name, &format!("a chain that can be run: {why}")).into());
         }
         let record = scene.chain.as_ref().and_then(|c| c.record.clone());
-        let (mut trace, mut trace_beads) = (None, vec![]);
+        let (mut trace, mut trace_beads, mut ran) = (None, vec![], None);
         if let Some(path) = &settings.trace {
             let every = match (&record, settings.trace_dt) {
                 (Some(r), Some(d)) if d != r.every => {
@@ -493,16 +497,35 @@ impl RunRequest {
             };
             let path = trace_output(name, path)?;
             let plan = granular::plan(&beads, &solver, Some(every));
-            // The run's end: its duration, else the cap (a bound).
-            let t_end = plan.duration.unwrap_or(plan.max_time);
             let columns = 1 + 3 * trace_beads.len() + 2;
-            let bytes = (t_end / every + 2.0) * columns as f64 * TRACE_BYTES_PER_NUMBER;
+            let size = |t: f64| (t / every + 2.0) * columns as f64 * TRACE_BYTES_PER_NUMBER;
+            // The run's end: its duration, else the cap — only a bound: when
+            // the cap would refuse the trace, the run itself (under the error
+            // control, as `run_chain` runs it, which then reuses it) says when
+            // it ends (a 1,000-bead chain's cap is 1.09 s, its run 0.026 s).
+            let mut t_end = plan.duration.unwrap_or(plan.max_time);
+            let capped = size(t_end);
+            if plan.duration.is_none() && (capped.is_nan() || capped > MAX_TRACE_BYTES) {
+                let job = crate::backend::ChainJob {
+                    beads: beads.clone(),
+                    plan: plan.clone(),
+                };
+                let o = crate::backend::run_chain_controlled(&job).map_err(Error::Runtime)?;
+                t_end = o.t_end;
+                ran = Some(o);
+            }
+            let bytes = size(t_end);
             if bytes.is_nan() || bytes > MAX_TRACE_BYTES {
+                let over = if ran.is_some() {
+                    "; the run lasts"
+                } else {
+                    " over up to"
+                };
                 return Err(flag(
                     "--trace",
                     &path.display().to_string(),
                     &format!(
-                        "a record of {} beads every {every:e} s over up to {t_end:.4e} s: about {:.1} GB of trace (at most {:.0} GB); record fewer beads, a larger `every` or set [stop] duration",
+                        "a record of {} beads every {every:e} s{over} {t_end:.4e} s: about {:.1} GB of trace (at most {:.0} GB); record fewer beads, a larger `every` or set [stop] duration",
                         trace_beads.len(),
                         bytes / 1e9,
                         MAX_TRACE_BYTES / 1e9
@@ -520,6 +543,7 @@ impl RunRequest {
             trace,
             beads: Some(beads),
             trace_beads,
+            ran,
         })
     }
 
@@ -542,7 +566,10 @@ impl RunRequest {
             beads: beads.clone(),
             plan,
         };
-        let o = crate::backend::run_chain_controlled(&job)?;
+        let o = match &self.ran {
+            Some(o) => o.clone(),
+            None => crate::backend::run_chain_controlled(&job)?,
+        };
         let Some((path, _)) = &self.trace else {
             return Ok(o);
         };

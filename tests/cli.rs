@@ -682,6 +682,28 @@ fn a_granular_chain_runs_with_its_probes_walls_and_record() {
 /// a short chain while its last bead still rebounds from the wall: the
 /// table names that wall impulse partial; with a duration past the rebound
 /// it does not.
+/// The trace-size guard judges the run, not the step cap: a record that
+/// the cap (0.33 s) would put at 1.5 GB is written when the run ends at
+/// 7.8 ms (it was refused).
+#[test]
+fn a_trace_is_judged_by_the_run_not_the_cap() {
+    let dir = tempfile::tempdir().unwrap();
+    let chain =
+        "balls = 300\nradius = 0.005\n[launch]\nballs = 1\nvelocity = 0.1\n[record]\nstride = 10\n";
+    let fits = write(&dir, "fits.toml", &format!("{chain}every = 5e-7\n"));
+    let trace = dir.path().join("t.csv");
+    let text =
+        String::from_utf8(success(&["run", &fits, "--trace", trace.to_str().unwrap()])).unwrap();
+    // A record's `every` below the run's step made the error control's
+    // twin the run itself: an estimate of NaN and `inaccurate`.
+    assert!(
+        text.contains("status  ok") && !text.contains("NaN"),
+        "{text}"
+    );
+    let rows = std::fs::read_to_string(&trace).unwrap().lines().count();
+    assert!(rows > 15_000, "{rows} rows");
+}
+
 /// A newcomer's slips get a pointer: a near built-in name is suggested, a
 /// walled chain's momentum error says why it is not there instead of NaN,
 /// and a plot of a column that is empty in every row is refused.

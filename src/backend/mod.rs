@@ -223,6 +223,13 @@ pub fn run_chains_controlled(
         let runs = backend.run_chains(n, &|k| {
             let Some(h) = steps[k] else { return Ok(None) };
             Ok(job(k)?.map(|mut j| {
+                if pass == 0 {
+                    // The twin is never reported, so never traced: not
+                    // aligned to a record's `every`, which could round its
+                    // step back to the run's own (a step of `every`: no
+                    // twin at all, an estimate of 0/0).
+                    j.plan.every = None;
+                }
                 j.plan = j.plan.rerun(&j.beads, h, ends[k], false);
                 j
             }))
