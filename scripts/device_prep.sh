@@ -26,7 +26,7 @@ if ! ls .gl/libvulkan1_*.deb >/dev/null 2>&1; then
 fi
 cargo build --release
 cp target/release/cradle .gpu/ && strip .gpu/cradle
-cp scripts/gpu/bench.sh scripts/gpu/compare.py examples/stress.toml scripts/gpu_tune.sh scripts/gpu_chains.sh scripts/gpu_check.sh .gpu/
+cp scripts/gpu/bench.sh scripts/gpu/compare.py examples/stress.toml scripts/gpu_tune.sh scripts/gpu_check.sh .gpu/
 cp scripts/peers/numba_cuda_grid.py .gpu/
 python3 scripts/grid.py 1000 1000 > .gpu/grid1000.toml
 python3 scripts/grid.py 100 100 > .gpu/grid100.toml
