@@ -45,6 +45,11 @@ fn expansion_is_row_major_with_exact_values() {
     let sc = s.scene(7).unwrap();
     assert_eq!(sc.mass[2], (0.5 * 0.01f64.ln()).exp()); // 0.1, geometric middle
     assert!((sc.mass[2] - 0.1).abs() < 1e-15);
+    // Both ends of a logspace exactly as written (exp(ln 0.01) is
+    // 0.010000000000000004: a filter on 0.01 found nothing).
+    assert_eq!(s.scene(0).unwrap().mass[2], 0.01);
+    assert_eq!(s.scene(11).unwrap().mass[2], 1.0);
+    assert_eq!(s.axis_fields(0)[0], "0.01");
     assert_eq!(sc.mass[0], s.base.mass[0]);
     assert_eq!(sc.gap, vec![3.0 * (2e-5 / 3.0); 4]);
     assert_eq!(s.scene(11).unwrap().gap[0], 2e-5);

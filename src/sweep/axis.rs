@@ -362,7 +362,9 @@ impl Serialize for Values {
 
 /// Value `i` of `num` evenly spaced ones, start + i·step; the last is `stop`.
 pub fn linspace_at(start: f64, stop: f64, num: usize, i: usize) -> f64 {
-    if num == 1 {
+    // Both ends exactly as written (numpy's geomspace pins them too):
+    // exp(ln(0.004)) is 0.004000000000000002, which a filter on 0.004 misses.
+    if num == 1 || i == 0 {
         return start;
     }
     if i + 1 == num {
@@ -374,7 +376,9 @@ pub fn linspace_at(start: f64, stop: f64, num: usize, i: usize) -> f64 {
 
 /// Value `i` of `num` geometrically spaced ones (start, stop > 0); the last is `stop`.
 pub fn logspace_at(start: f64, stop: f64, num: usize, i: usize) -> f64 {
-    if num == 1 {
+    // Both ends exactly as written (numpy's geomspace pins them too):
+    // exp(ln(0.004)) is 0.004000000000000002, which a filter on 0.004 misses.
+    if num == 1 || i == 0 {
         return start;
     }
     if i + 1 == num {
