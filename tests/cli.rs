@@ -212,7 +212,7 @@ fn invalid_values_name_file_line_key_value_and_range() {
             "balls = 3\nvelocity = \"fast\"\n",
             "s.toml:2",
             "velocity",
-            "sequence",
+            "a number or an array of numbers",
         ),
         ("balls = 3\nvelocity = [1, 0, 0\n", "s.toml:2", "", ""),
     ];
@@ -720,6 +720,15 @@ fn slips_get_a_pointer_not_a_nan() {
     );
     let e = bad_input(&["run", &rest]);
     assert!(e.contains("a chain needs something to move it"), "{e}");
+    // `velocity = 0.0`, one number for every bead, as `radius = 0.005` is
+    // (it was refused: an array only).
+    let still = write(
+        &dir,
+        "p.toml",
+        "balls = 30\nradius = 0.005\nvelocity = 0.0\n[pulse]\nforce = 10.0\nduration = 2e-5\n",
+    );
+    let text = String::from_utf8(success(&["run", &still])).unwrap();
+    assert!(text.contains("status  ok"), "{text}");
     let scene = write(
         &dir,
         "w.toml",

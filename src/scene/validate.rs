@@ -236,7 +236,7 @@ impl SceneSpec {
             }
             (Some(v), None) => c.per(
                 "velocity",
-                Some(&PerBall::List(v.clone())),
+                Some(v),
                 0.0,
                 n,
                 "ball",

@@ -434,13 +434,19 @@ pub fn apply(spec: &mut SceneSpec, base: &Scene, p: &Param, value: &Value) {
             })
         }
         "velocity" => {
-            let v = spec.velocity.get_or_insert_with(|| base.velocity.clone());
+            // A scalar `velocity` is every ball's: broadcast it first.
+            let mut v = match spec.velocity.take() {
+                Some(PerBall::List(l)) => l,
+                Some(PerBall::Scalar(x)) => vec![x; n],
+                None => base.velocity.clone(),
+            };
             spec.launch = None;
             let i = p.index.unwrap_or(0);
             if v.len() <= i {
                 v.resize(i + 1, 0.0);
             }
             v[i] = num;
+            spec.velocity = Some(PerBall::List(v));
         }
         "launch.balls" => {
             spec.launch.get_or_insert_with(LaunchSpec::default).balls = Some(num as i64)
