@@ -117,8 +117,9 @@ def sweep(
     per axis, ``status``, ``v_0`` ...), typed as in the Parquet output:
     integers as int64, ``status`` dictionary-encoded, missing values null.
 
-    ``out`` also writes the table to that file (CSV, or Parquet for a name
-    ending in ``.parquet``; ``format`` overrides), with its JSON sidecar, as
+    ``out`` also writes the table to that file (CSV for a name ending in
+    ``.csv``, Parquet for ``.parquet`` or ``.pq``; another name needs
+    ``format``, which must agree with a known extension), with its JSON sidecar, as
     the command line does; ``resume=True`` continues an interrupted run into
     it. Without ``out`` nothing is left on disk.
     """
