@@ -187,8 +187,8 @@ pub struct SweepArgs {
     /// Worker threads for the CPU backend [default: all cores].
     #[arg(long, allow_negative_numbers = true)]
     pub threads: Option<i64>,
-    /// The output's format [default: parquet for a FILE ending in .parquet,
-    /// else csv].
+    /// The output's format [default: the one FILE's name says: .csv, or
+    /// .parquet/.pq; another name needs --format].
     #[arg(long, value_enum, value_name = "FORMAT")]
     pub format: Option<TableKind>,
     /// Fill the `error_estimate` column: every scene runs a second time with
