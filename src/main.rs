@@ -66,7 +66,7 @@ fn forget_trace_on_signal(path: &std::path::Path) {
     use hertz_cradle::output::guard::with_suffix;
     let (tmp, lock) = (
         with_suffix(path, hertz_cradle::output::publish::TMP),
-        with_suffix(path, ".lock"),
+        OutputLock::path_for(path),
     );
     let shown = path.display().to_string();
     let _ = ctrlc::set_handler(move || {

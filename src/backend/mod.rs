@@ -114,6 +114,50 @@ pub struct Needs {
     pub chains: bool,
 }
 
+/// At most `n` holders at a time (a counting semaphore): the sweep
+/// pipeline's backend calls, a GPU's batches on the device.
+pub(crate) struct Gate {
+    free: std::sync::Mutex<usize>,
+    cv: std::sync::Condvar,
+}
+
+/// A place in a [`Gate`], given back when dropped (also when its holder
+/// panics).
+pub(crate) struct Pass<'a>(&'a Gate);
+
+impl Gate {
+    /// A gate of `n` places (at least one).
+    pub(crate) fn new(n: usize) -> Gate {
+        Gate {
+            free: std::sync::Mutex::new(n.max(1)),
+            cv: std::sync::Condvar::new(),
+        }
+    }
+
+    /// Wait for a place.
+    pub(crate) fn enter(&self) -> Pass<'_> {
+        let mut free = self.free.lock().unwrap_or_else(|e| e.into_inner());
+        while *free == 0 {
+            free = self.cv.wait(free).unwrap_or_else(|e| e.into_inner());
+        }
+        *free -= 1;
+        Pass(self)
+    }
+
+    /// `f` run holding a place.
+    pub(crate) fn with<T>(&self, f: impl FnOnce() -> T) -> T {
+        let _pass = self.enter();
+        f()
+    }
+}
+
+impl Drop for Pass<'_> {
+    fn drop(&mut self) {
+        *self.0.free.lock().unwrap_or_else(|e| e.into_inner()) += 1;
+        self.0.cv.notify_one();
+    }
+}
+
 /// What a GPU did during a sweep (the sidecar's `stages_s.gpu`).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct DeviceStats {

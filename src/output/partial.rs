@@ -80,22 +80,18 @@ pub fn partial_path(out: &Path) -> PathBuf {
 /// is no readable partial file.
 pub fn resumable_rows(out: &Path) -> Option<u64> {
     let partial = partial_path(out);
-    let mut f = File::open(&partial).ok()?;
-    let mut r = BufReader::new(&mut f);
-    let mut first = vec![];
-    r.read_until(b'\n', &mut first).ok()?;
-    if first == PARQUET_PARTIAL_MAGIC {
-        let mut header = vec![];
-        r.read_until(b'\n', &mut header).ok()?;
-        let head = (first.len() + header.len()) as u64;
-        drop(r);
-        let frames = super::parquet_file::frames(&mut f, head).ok()?;
-        return Some(frames.iter().map(|fr| fr.rows).sum());
-    }
-    drop(r);
-    complete_prefix(&partial, &first)
-        .ok()
-        .map(|(_, rows, _)| rows)
+    // The head a resume expects is the file's own: its first line (the CSV
+    // header), or the Parquet magic line and the CSV header after it.
+    let mut r = BufReader::new(File::open(&partial).ok()?);
+    let mut head = vec![];
+    r.read_until(b'\n', &mut head).ok()?;
+    let whole = if head == PARQUET_PARTIAL_MAGIC {
+        r.read_until(b'\n', &mut head).ok()?;
+        complete_frames(&partial, &head)
+    } else {
+        complete_prefix(&partial, &head)
+    };
+    whole.ok().map(|(_, rows, _)| rows)
 }
 
 fn spec_path(out: &Path) -> PathBuf {

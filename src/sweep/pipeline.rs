@@ -21,14 +21,14 @@
 
 use std::collections::BTreeMap;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
-use std::sync::{mpsc, Condvar, Mutex};
+use std::sync::{mpsc, Mutex};
 use std::time::{Duration, Instant};
 
 use anyhow::Result;
 
 use super::session::{Options, RowOutcome, SweepRow};
 use super::Sweep;
-use crate::backend::{run_with_estimate, Backend, DeviceStats, Job};
+use crate::backend::{run_with_estimate, Backend, DeviceStats, Gate, Job};
 use crate::engine::granular::ChainOutcome;
 use crate::engine::Status;
 use crate::output::parquet_file::{Columns, Segment, SEGMENT_ROWS};
@@ -162,29 +162,6 @@ pub struct Picked {
     pub ok: bool,
 }
 
-/// At most `n` holders at a time (backend calls of a backend that limits them).
-struct Gate {
-    free: Mutex<usize>,
-    cv: Condvar,
-    /// The backend limits its calls (`Backend::max_concurrent_runs`).
-    limited: bool,
-}
-
-impl Gate {
-    fn with<T>(&self, f: impl FnOnce() -> T) -> T {
-        let mut free = self.free.lock().unwrap_or_else(|e| e.into_inner());
-        while *free == 0 {
-            free = self.cv.wait(free).unwrap_or_else(|e| e.into_inner());
-        }
-        *free -= 1;
-        drop(free);
-        let r = f();
-        *self.free.lock().unwrap_or_else(|e| e.into_inner()) += 1;
-        self.cv.notify_one();
-        r
-    }
-}
-
 /// Which scenes a stream runs: position p of the stream is scene `p`
 /// (`All`) or scene `ids[p]` (`List`, ascending: a refinement level).
 #[derive(Clone, Copy)]
@@ -208,7 +185,7 @@ fn batch(
     sweep: &Sweep,
     opts: &Options,
     backend: &dyn Backend,
-    gate: &Gate,
+    gate: Option<&Gate>,
     format: &TableFormat,
     ids: Ids,
     (first, end): (u64, u64),
@@ -244,10 +221,9 @@ fn batch(
     // it build their jobs only once let in, so no more than that many
     // batches of jobs are held, whatever the thread count. (Time spent
     // waiting to be let in is in no stage: the lane is idle.)
-    let outcomes = if gate.limited {
-        gate.with(work)?
-    } else {
-        work()?
+    let outcomes = match gate {
+        Some(g) => g.with(work)?,
+        None => work()?,
     };
     let t2 = Instant::now();
     let n = outcomes.len();
@@ -362,11 +338,9 @@ pub fn stream(
     let ahead = (AHEAD_ROWS / batch_size).max(2);
     let n_batches = (hi - lo).div_ceil(batch_size);
     let lanes = rayon::current_num_threads().clamp(1, n_batches.max(1) as usize);
-    let gate = Gate {
-        free: Mutex::new(backend.max_concurrent_runs().max(1)),
-        cv: Condvar::new(),
-        limited: backend.max_concurrent_runs() < usize::MAX,
-    };
+    // A backend that takes few calls at once (a GPU) is gated; the CPU is not.
+    let gate = (backend.max_concurrent_runs() < usize::MAX)
+        .then(|| Gate::new(backend.max_concurrent_runs()));
     let next = AtomicU64::new(0);
     // Batches written so far (the writer's position), and a stop signal.
     let written = AtomicU64::new(0);
@@ -482,7 +456,7 @@ pub fn stream(
                         sweep,
                         opts,
                         backend,
-                        &gate,
+                        gate.as_ref(),
                         &format,
                         ids,
                         (first, (first + batch_size).min(hi)),

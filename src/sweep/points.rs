@@ -209,8 +209,9 @@ fn check_row(
     }
     // A row must make the same kind of scene as the base (an axis or a
     // sample value that turns a cradle into a chain is refused the same way).
-    if let Ok(scene) = s.validate() {
-        if scene.chain.is_some() != base.chain.is_some() {
+    let e = match s.validate() {
+        Ok(scene) if scene.chain.is_some() == base.chain.is_some() => return Ok(()),
+        Ok(_) => {
             let k = params
                 .iter()
                 .zip(row)
@@ -229,31 +230,28 @@ fn check_row(
                 crate::sweep::mixed_sweep(base.chain.is_some()),
             ));
         }
-        return Ok(());
-    }
-    if let Err(e) = s.validate() {
-        let alone = params.iter().zip(row).position(|(p, v)| {
-            let mut one = spec.clone();
-            axis::apply(&mut one, base, p, v);
-            one.validate().is_err()
-        });
-        let (key, value) = match alone {
-            Some(k) => (header[k].clone(), row[k].to_string()),
-            None => (
-                header.join(","),
-                row.iter()
-                    .map(|v| v.to_string())
-                    .collect::<Vec<_>>()
-                    .join(","),
-            ),
-        };
-        return Err(invalid(
-            path,
-            line,
-            &key,
-            value,
-            format!("makes an invalid scene: {e}"),
-        ));
-    }
-    Ok(())
+        Err(e) => e,
+    };
+    let alone = params.iter().zip(row).position(|(p, v)| {
+        let mut one = spec.clone();
+        axis::apply(&mut one, base, p, v);
+        one.validate().is_err()
+    });
+    let (key, value) = match alone {
+        Some(k) => (header[k].clone(), row[k].to_string()),
+        None => (
+            header.join(","),
+            row.iter()
+                .map(|v| v.to_string())
+                .collect::<Vec<_>>()
+                .join(","),
+        ),
+    };
+    Err(invalid(
+        path,
+        line,
+        &key,
+        value,
+        format!("makes an invalid scene: {e}"),
+    ))
 }

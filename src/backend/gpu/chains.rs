@@ -655,7 +655,7 @@ impl Gpu {
         }
         // The chains' device memory is held for the whole part: a turn on
         // the device from the upload to the read-back.
-        let _turn = self.device_turn();
+        let _turn = self.on_device.enter();
         let part = self.upload_chains::<R>(jobs)?;
         let heads = self.run_chains_to_end(pipe, jobs, &part)?;
         self.read_chains::<R>(jobs, &part, &heads)

@@ -104,9 +104,9 @@ pub struct Gpu {
     stats: Tracker,
     /// The chain pipeline of each precision (f64, df64), built on first use.
     chain_pipe: Mutex<[Option<Arc<chains::ChainPipe>>; 2]>,
-    /// Batches on the device now (at most `profile.calls`; more calls than
+    /// Batches on the device now: at most `profile.calls` (more calls than
     /// that are admitted, `host_ahead` of them planning, packing or unpacking).
-    on_device: (Mutex<usize>, std::sync::Condvar),
+    on_device: crate::backend::Gate,
 }
 
 impl Gpu {
@@ -147,6 +147,11 @@ impl Gpu {
             bind_group_layouts: &[Some(&layout)],
             immediate_size: 0,
         });
+        let profile = if info.device_type == wgpu::DeviceType::Cpu {
+            Profile::SOFTWARE
+        } else {
+            Profile::HARDWARE
+        };
         let max_workgroups = device.limits().max_compute_workgroups_per_dimension;
         let max_binding = device.limits().max_storage_buffer_binding_size;
         let gpu = Gpu {
@@ -159,14 +164,10 @@ impl Gpu {
             info: info.clone(),
             max_workgroups,
             max_binding,
-            profile: if info.device_type == wgpu::DeviceType::Cpu {
-                Profile::SOFTWARE
-            } else {
-                Profile::HARDWARE
-            },
+            profile,
             stats: Tracker::default(),
             chain_pipe: Mutex::new([None, None]),
-            on_device: (Mutex::new(0), std::sync::Condvar::new()),
+            on_device: crate::backend::Gate::new(profile.calls),
         };
         Ok(gpu)
     }
@@ -174,6 +175,7 @@ impl Gpu {
     /// The same context using the device as `profile` says.
     pub fn with_profile(mut self, profile: Profile) -> Gpu {
         self.profile = profile;
+        self.on_device = crate::backend::Gate::new(profile.calls);
         self
     }
 
@@ -253,7 +255,7 @@ impl Gpu {
         }
         let t1 = std::time::Instant::now();
         let (words, reals) = {
-            let _turn = self.device_turn();
+            let _turn = self.on_device.enter();
             let t2 = std::time::Instant::now();
             self.stats
                 .host((t1 - t0).as_secs_f64(), 0.0, (t2 - t1).as_secs_f64());
@@ -269,25 +271,6 @@ impl Gpu {
             .collect();
         self.stats.host(0.0, t3.elapsed().as_secs_f64(), 0.0);
         Ok(runs)
-    }
-
-    /// A turn on the device: waits while `profile.calls` parts are on it;
-    /// the turn ends when the guard is dropped.
-    fn device_turn(&self) -> impl Drop + '_ {
-        struct Turn<'a>(&'a (Mutex<usize>, std::sync::Condvar));
-        impl Drop for Turn<'_> {
-            fn drop(&mut self) {
-                *self.0 .0.lock().unwrap_or_else(|e| e.into_inner()) -= 1;
-                self.0 .1.notify_one();
-            }
-        }
-        let (m, cv) = &self.on_device;
-        let mut n = m.lock().unwrap_or_else(|e| e.into_inner());
-        while *n >= self.profile.calls.max(1) {
-            n = cv.wait(n).unwrap_or_else(|e| e.into_inner());
-        }
-        *n += 1;
-        Turn(&self.on_device)
     }
 }
 
