@@ -10,11 +10,19 @@
 //! which measures every run's true error and writes the tables.
 //!
 //! `cargo run --release --example chain_contract -- target/chain_contract.json [name-filter]`
+//!
+//! With `--backend cpu|gpu` and `--precision f64|df64` (lists, comma
+//! separated) it runs only the contract's controlled runs, every chain and
+//! tolerance of one backend and precision as one batch (a sweep's path),
+//! each run labelled with both (`--skip NAME`: leave out the chains whose
+//! name contains NAME): the contract on a lent GPU
+//! (`scripts/chain_contract_table.py --backends`).
 
-use hertz_cradle::backend::{cpu::Cpu, run_chains_controlled, ChainJob};
+use hertz_cradle::backend::gpu::{find_adapter, Gpu, Want};
+use hertz_cradle::backend::{cpu::Cpu, run_chains_controlled, Backend, ChainJob};
 use hertz_cradle::engine::granular::{self, control, Beads, ChainOutcome, NoRows};
 use hertz_cradle::engine::{Overrides, Solver};
-use hertz_cradle::scene::Scene;
+use hertz_cradle::scene::{Precision, Scene};
 use serde_json::{json, Value};
 use std::time::Instant;
 
@@ -153,12 +161,123 @@ fn outcome(o: &ChainOutcome, secs: f64, n: usize) -> Value {
     })
 }
 
+/// `--backend` and `--precision`: every chain at one tolerance in one
+/// batch under the error control, for each backend, precision and
+/// tolerance; the JSON is written after each batch (a capped run keeps the
+/// batches it finished). `skip`: chains whose name contains it are left out.
+fn across(path: &str, only: Option<&str>, skip: Option<&str>, backends: &str, precisions: &str) {
+    let gpu = backends.contains("gpu").then(|| {
+        let a = find_adapter(Want::Any).expect("a GPU adapter (--backend gpu)");
+        Gpu::new(&a).expect("a GPU context")
+    });
+    let adapter = gpu.as_ref().map(|g| g.info().name.clone());
+    let family: Vec<(String, Beads, Scene)> = family()
+        .into_iter()
+        .filter(|(name, _)| only.is_none_or(|o| name.contains(o)))
+        .filter(|(name, _)| skip.is_none_or(|o| !name.contains(o)))
+        .map(|(name, text)| {
+            let s = Scene::from_toml_str("family", &text).unwrap();
+            (name, Beads::from_scene(&s), s)
+        })
+        .collect();
+    let mut runs: Vec<Vec<Value>> = vec![vec![]; family.len()];
+    for backend in backends.split(',') {
+        let b: &dyn Backend = match backend {
+            "cpu" => &Cpu,
+            "gpu" => gpu.as_ref().unwrap(),
+            other => panic!("--backend {other}: cpu or gpu"),
+        };
+        for precision in precisions.split(',') {
+            let prec = *Precision::ALL
+                .iter()
+                .find(|p| p.name() == precision)
+                .unwrap_or_else(|| panic!("--precision {precision}: f64 or df64"));
+            for tol in [1e-4, 1e-6, 1e-8] {
+                let jobs: Vec<ChainJob> = family
+                    .iter()
+                    .map(|(_, beads, s)| {
+                        let o = Overrides {
+                            tolerance: Some(tol),
+                            precision: Some(prec),
+                            ..Default::default()
+                        };
+                        let solver = Solver::resolve(s, &o).unwrap();
+                        // f32 is refused for chains, as a user would be.
+                        granular::check_solver(&solver).unwrap_or_else(|e| panic!("{e}"));
+                        ChainJob {
+                            beads: beads.clone(),
+                            plan: granular::plan(beads, &solver, None),
+                        }
+                    })
+                    .collect();
+                let t = Instant::now();
+                let out =
+                    run_chains_controlled(b, jobs.len(), &|k| Ok(Some(jobs[k].clone()))).unwrap();
+                let secs = t.elapsed().as_secs_f64();
+                eprintln!(
+                    "{backend} {precision} {tol:e}: {} runs in {secs:.1} s",
+                    out.len()
+                );
+                for (c, o) in out.iter().enumerate() {
+                    let mut r = outcome(o, secs / out.len() as f64, family[c].1.n);
+                    r["kind"] = json!("controlled");
+                    r["tol"] = json!(tol);
+                    r["backend"] = json!(backend);
+                    r["precision"] = json!(precision);
+                    runs[c].push(r);
+                }
+                let chains: Vec<Value> = family
+                    .iter()
+                    .zip(&runs)
+                    .map(|((name, b, _), runs)| chain_json(name, b, runs.clone()))
+                    .collect();
+                let doc = json!({ "chains": chains, "adapter": adapter });
+                std::fs::write(path, serde_json::to_string(&doc).unwrap()).unwrap();
+            }
+        }
+    }
+    eprintln!("wrote {path}");
+}
+
+/// A chain's compiled beads (what the reference integrates) and its runs.
+fn chain_json(name: &str, b: &Beads, runs: Vec<Value>) -> Value {
+    json!({
+        "name": name,
+        "n": b.n,
+        "mass": b.mass,
+        "k": b.k,
+        "d0": b.d0,
+        "v0": b.v0,
+        "pulse": b.pulse.as_ref().map(|p| json!({"bead": p.bead, "force": p.force, "duration": p.duration})),
+        "probes": b.probes,
+        "v_scale": b.v_scale(),
+        "t_scale": b.time_scale(),
+        "runs": runs,
+    })
+}
+
 fn main() {
-    let mut args = std::env::args().skip(1);
+    let mut args = vec![];
+    let (mut backends, mut precisions, mut skip) = (None, None, None);
+    let mut it = std::env::args().skip(1);
+    while let Some(a) = it.next() {
+        match a.as_str() {
+            "--backend" => backends = it.next(),
+            "--precision" => precisions = it.next(),
+            "--skip" => skip = it.next(),
+            _ => args.push(a),
+        }
+    }
+    let mut args = args.into_iter();
     let path = args
         .next()
         .unwrap_or_else(|| "target/chain_contract.json".into());
     let only = args.next();
+    if backends.is_some() || precisions.is_some() {
+        let b = backends.unwrap_or_else(|| "cpu".into());
+        let p = precisions.unwrap_or_else(|| "f64".into());
+        return across(&path, only.as_deref(), skip.as_deref(), &b, &p);
+    }
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(1)
         .build()
@@ -232,19 +351,7 @@ fn main() {
             }
         }
         eprintln!("{name}: {} runs", runs.len());
-        chains.push(json!({
-            "name": name,
-            "n": b.n,
-            "mass": b.mass,
-            "k": b.k,
-            "d0": b.d0,
-            "v0": b.v0,
-            "pulse": b.pulse.as_ref().map(|p| json!({"bead": p.bead, "force": p.force, "duration": p.duration})),
-            "probes": b.probes,
-            "v_scale": b.v_scale(),
-            "t_scale": b.time_scale(),
-            "runs": runs,
-        }));
+        chains.push(chain_json(&name, &b, runs));
     }
     std::fs::write(
         &path,

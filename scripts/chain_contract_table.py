@@ -6,6 +6,9 @@ independent reference (scripts/chain_reference.py).
     python3 scripts/chain_contract_table.py target/chain_contract.json \
         target/chain_contract_errors.json
 
+With --backends (the runs of `chain_contract --backend … --precision …`):
+one row per backend, precision and tolerance (met / flagged / silent).
+
 A run is *met* when its status is ok and its error against the reference is
 within its tolerance, *flagged* when its status is inaccurate or sensitive,
 *silent* when its status is ok and its error is above its tolerance (what the
@@ -36,7 +39,53 @@ def difference(vs, a, b):
     return d
 
 
+def verdict(r, t, floor):
+    """met, flagged (inaccurate or sensitive), unresolved or silent."""
+    if r["status"] in ("inaccurate", "sensitive"):
+        return "flagged"
+    if floor > t:
+        return "unresolved"
+    if r["status"] == "ok" and (r["error"] <= t or r["error"] <= floor):
+        return "met"
+    return "silent"
+
+
+def backends(eng_path, err_path):
+    """The contract per backend and precision."""
+    doc = json.load(open(eng_path))
+    err = {c["name"]: c for c in json.load(open(err_path))["chains"]}
+    tally = {}
+    silent = []
+    for c in doc["chains"]:
+        e = err[c["name"]]
+        floor = 10 * e["ref_error"]
+        for r, x in zip(c["runs"], e["runs"]):
+            key = (r["backend"], r["precision"], r["tol"])
+            a = tally.setdefault(key, {"met": 0, "flagged": 0, "silent": 0, "unresolved": 0, "ratios": [], "steps": []})
+            v = verdict(dict(r, error=x["error"]), r["tol"], floor)
+            a[v] += 1
+            a["steps"].append(r["steps"])
+            if v == "silent":
+                silent.append(f"{c['name']}, {key}: error {x['error']:.2e}, estimate {r['estimate']}")
+            est = r["estimate"]
+            if est is not None and x["error"] > floor and x["error"] > 0:
+                a["ratios"].append(est / x["error"])
+    print(f"Adapter: {doc.get('adapter') or 'none (CPU only)'}")
+    print()
+    print("| backend | precision | tolerance | met | flagged | silent | unresolved by the reference | estimate / true error: min, median | steps: median |")
+    print("|---|---|---|---|---|---|---|---|---|")
+    for (b, p, t), a in tally.items():
+        rs = a["ratios"] or [math.nan]
+        print(f"| {b} | {p} | {t:g} | {a['met']} | {a['flagged']} | {a['silent']} | {a['unresolved']} "
+              f"| {min(rs):.2f}, {statistics.median(rs):.2f} | {statistics.median(a['steps']):.0f} |")
+    for x in silent:
+        print(f"- silent: {x}")
+
+
 def main():
+    if "--backends" in sys.argv:
+        args = [a for a in sys.argv[1:] if a != "--backends"]
+        return backends(args[0], args[1])
     eng = json.load(open(sys.argv[1]))["chains"]
     err = {c["name"]: c for c in json.load(open(sys.argv[2]))["chains"]}
     tols = [1e-4, 1e-6, 1e-8]

@@ -4,7 +4,7 @@
 # scripts/gpu/README.md (vendored from the project's shared/gpu/) in one go,
 # plus scripts/gpu_tune.sh. Everything it copies is in this repository.
 #   .gl/   the Vulkan loader and friends as .deb files (unpacked on the device)
-#   .gpu/  a stripped release `cradle`, bench.sh, compare.py, gpu_tune.sh,
+#   .gpu/  a stripped release `cradle` and `chain_contract`, bench.sh, compare.py, gpu_tune.sh,
 #          grid100/grid1000 and stress.toml, the numba.cuda peer
 # Both folders are git-excluded. Then, with the device tool, one call carrying
 # .gl and .gpu: `bash .gpu/gpu_check.sh` (the one call of issue #48: about 6
@@ -25,7 +25,9 @@ if ! ls .gl/libvulkan1_*.deb >/dev/null 2>&1; then
   (cd .gl && apt-get $o download libvulkan1 libegl1 libglvnd0 libopengl0 libgl1 libglx0 libgles2)
 fi
 cargo build --release
+cargo build --release --example chain_contract
 cp target/release/cradle .gpu/ && strip .gpu/cradle
+cp target/release/examples/chain_contract .gpu/ && strip .gpu/chain_contract
 cp scripts/gpu/bench.sh scripts/gpu/compare.py examples/stress.toml scripts/gpu_tune.sh scripts/gpu_check.sh .gpu/
 cp scripts/peers/numba_cuda_grid.py .gpu/
 python3 scripts/grid.py 1000 1000 > .gpu/grid1000.toml

@@ -21,6 +21,13 @@
 #             capped at STRESS_CAP seconds.
 #   struck    1,000 struck chains of 1,000 beads (issue #30's target).
 #   dimer     512 struck 100-bead dimer chains (8 radius ratios x 64 speeds).
+#   contract  issue #43's family (examples/chain_contract.rs: 20 chains at
+#             tolerances 1e-4, 1e-6, 1e-8, the 30-bead sensitive one left out:
+#             5.6 million steps at 1e-8) under the error control on the GPU
+#             in f64 (~100 s on an H200; df64 took over 170 s for its first
+#             tolerance there, CONTRACT_PRECISIONS="f64 df64" to try); its JSON
+#             comes back in $OUT, for the reference here:
+#             scripts/chain_reference.py, chain_contract_table.py --backends.
 # Environment: CAP (seconds per chain run, default 120), GRID_CAP (per grid1000
 # run, default 45), STRESS_CAP (the GPU's stress run, default 60),
 # PROFILES (the extra grid1000 profiles, ';'-separated), ALLOW_SOFTWARE=1
@@ -128,6 +135,14 @@ run struck_gpu        "$CAP" "" sweep $w/struck.toml --out $w/struck_gpu.csv --b
 run struck_cpu        "$CAP" "" sweep $w/struck.toml --out $w/struck_cpu.csv --backend cpu
 run dimer_gpu         "$CAP" "" sweep $w/dimer.toml --out $w/dimer_gpu.csv --backend gpu
 run dimer_cpu         "$CAP" "" sweep $w/dimer.toml --out $w/dimer_cpu.csv --backend cpu
+if [ -x ./chain_contract ] && ! [[ " $SKIP " == *" contract "* ]]; then
+  for p in ${CONTRACT_PRECISIONS:-f64}; do
+    s=$(date +%s.%N)
+    timeout -k 5 "$CAP" ./chain_contract "$w/contract_$p.json" --skip "sensitive: 30" --backend gpu --precision $p >"$w/contract_$p.log" 2>&1
+    log "contract_gpu_$p       exit $? in $(python3 -c "print(f'{$(date +%s.%N)-$s:.2f}')") s: $(tail -2 "$w/contract_$p.log" | tr '\n' ' ')"
+    [ -f "$w/contract_$p.json" ] && gzip -c "$w/contract_$p.json" >"$out/contract_$p.json.gz"
+  done
+fi
 run stress_gpu  "$STRESS_CAP" "" sweep stress.toml --out $w/stress_gpu.csv --backend gpu --precision f64
 run stress_cpu        "$CAP" "" sweep stress.toml --out $w/stress_cpu.csv --backend cpu
 
