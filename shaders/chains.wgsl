@@ -699,11 +699,10 @@ fn integral(f0: real, f1: real, d0: real, d1: real, s0: real, s1: real) -> real 
     return r_add(r_add(a, b), r_div(r_add(s0, s1), real(120.0)));
 }
 
-// observe::FirstPeak::see on the packed peak at o (has_last, t, q, found, t, value).
-fn first_peak_see(o: u32, t: real, q: Q, floor: real) {
-    if (r_nz(R[o + 5u])) {
-        return;
-    }
+// observe::FirstPeak::local_max on the packed peak at o (has_last, t, q,
+// found, its t and value, then see_leading's records): (found, t, value).
+fn first_peak_max(o: u32, t: real, q: Q) -> array<real, 3> {
+    var out = array<real, 3>(real(0.0), real(0.0), real(0.0));
     if (r_nz(R[o])) {
         let t0 = R[o + 1u];
         let q0 = Q(R[o + 2u], R[o + 3u], R[o + 4u]);
@@ -711,18 +710,70 @@ fn first_peak_see(o: u32, t: real, q: Q, floor: real) {
             let h = r_sub(t, t0);
             let c = quintic(q0.x, q.x, r_mul(q0.y, h), r_mul(q.y, h), r_mul(r_mul(q0.z, h), h), r_mul(r_mul(q.z, h), h));
             let pk = peak(c);
-            if (r_gt(pk.y, floor)) {
-                R[o + 5u] = real(1.0);
-                R[o + 6u] = r_add(t0, r_mul(pk.x, h));
-                R[o + 7u] = pk.y;
-            }
+            out = array<real, 3>(real(1.0), r_add(t0, r_mul(pk.x, h)), pk.y);
         }
     }
+    return out;
+}
+
+fn first_peak_last(o: u32, t: real, q: Q) {
     R[o] = real(1.0);
     R[o + 1u] = t;
     R[o + 2u] = q.x;
     R[o + 3u] = q.y;
     R[o + 4u] = q.z;
+}
+
+// observe::FirstPeak::see.
+fn first_peak_see(o: u32, t: real, q: Q, floor: real) {
+    if (r_nz(R[o + 5u])) {
+        return;
+    }
+    let m = first_peak_max(o, t, q);
+    if (r_nz(m[0]) && r_gt(m[2], floor)) {
+        R[o + 5u] = real(1.0);
+        R[o + 6u] = m[1];
+        R[o + 7u] = m[2];
+    }
+    first_peak_last(o, t, q);
+}
+
+// observe::FirstPeak::see_leading (the records' count at o + 8, record k's
+// t and value at o + 9 + 2k, o + 10 + 2k): whether a new record was taken.
+fn first_peak_see_leading(o: u32, t: real, q: Q, floor: real) -> bool {
+    var taken = false;
+    let m = first_peak_max(o, t, q);
+    if (r_nz(m[0])) {
+        var count = u32(r_hi(R[o + 8u]));
+        var top = floor;
+        if (count > 0u) {
+            top = R[o + 8u + 2u * count];
+        }
+        if (r_gt(m[2], top)) {
+            let bar = r_mul(LEADING_FRACTION, m[2]);
+            var drop = count;
+            for (var i = 0u; i < count; i++) {
+                if (r_ge(R[o + 10u + 2u * i], bar)) {
+                    drop = i;
+                    break;
+                }
+            }
+            for (var i = drop; i < count; i++) {
+                R[o + 9u + 2u * (i - drop)] = R[o + 9u + 2u * i];
+                R[o + 10u + 2u * (i - drop)] = R[o + 10u + 2u * i];
+            }
+            count -= drop;
+            if (count == LEADING_RECORDS) {
+                count -= 1u;
+            }
+            R[o + 9u + 2u * count] = m[1];
+            R[o + 10u + 2u * count] = m[2];
+            R[o + 8u] = r_count(count + 1u, 0u);
+            taken = true;
+        }
+    }
+    first_peak_last(o, t, q);
+    return taken;
 }
 
 // observe::WallWatch::see on the packed watch at o (has_last, t, q, peak, impulse).
@@ -753,8 +804,8 @@ fn wall_see(o: u32, t: real, q: Q, f0: real) {
     R[o + 4u] = q.z;
 }
 
-// run::Watch::see at t; returns SNAP_WIDTH when the last probe's pulse
-// arrived in this step.
+// run::Watch::see at t; returns SNAP_WIDTH when the last probe's velocity
+// took a new record peak in this step.
 fn watch_see(t: real) -> u32 {
     let n = H.n;
     var snaps = 0u;
@@ -762,29 +813,28 @@ fn watch_see(t: real) -> u32 {
     let floor_f = R[H.sc + SC_FLOOR_F];
     for (var k = 0u; k < H.probes; k++) {
         let i = probe_beads[H.probe_at + k];
-        let vo = H.o_watch + 16u * k;
-        let fo = vo + 8u;
-        let had = r_nz(R[vo + 5u]);
+        let vo = H.o_watch + PROBE_REALS * k;
+        let fo = vo + FIRST_PEAK_REALS;
         let fl = force_rates(i);
         let fr = force_rates(i + 1u);
-        first_peak_see(vo, t, bead_rates_with(i, t, fl.y, fr.y), floor_v);
+        let taken = first_peak_see_leading(vo, t, bead_rates_with(i, t, fl.y, fr.y), floor_v);
         let base = r_mul(real(0.5), r_add(R[H.o_f0 + i], R[H.o_f0 + i + 1u]));
         let q = Q(
             r_sub(r_mul(real(0.5), r_add(fl.x, fr.x)), base),
             r_mul(real(0.5), r_add(fl.y, fr.y)),
             r_mul(real(0.5), r_add(fl.z, fr.z)),
         );
-        first_peak_see(fo, t, q, floor_f);
-        if (k + 1u == H.probes && !had && r_nz(R[vo + 5u])) {
+        first_peak_see_leading(fo, t, q, floor_f);
+        if (k + 1u == H.probes && taken) {
             snaps = SNAP_WIDTH;
         }
     }
-    let far = H.o_watch + 16u * H.probes;
+    let far = H.o_watch + PROBE_REALS * H.probes;
     if (r_gt(R[H.o_k], real(0.0))) {
-        wall_see(far + 8u, t, force_rates(0u), R[H.o_f0]);
+        wall_see(far + FIRST_PEAK_REALS, t, force_rates(0u), R[H.o_f0]);
     }
     if (r_gt(R[H.o_k + n], real(0.0))) {
-        wall_see(far + 15u, t, force_rates(n), R[H.o_f0 + n]);
+        wall_see(far + FIRST_PEAK_REALS + WALL_WATCH_REALS, t, force_rates(n), R[H.o_f0 + n]);
     }
     if ((H.flags & F_RIGHT) != 0u) {
         let f = force_rates(n);
@@ -903,7 +953,7 @@ fn after_step(st: Step) {
     }
     hd.snaps |= snaps;
     if ((hd.flags & F_END_AT) == 0u) {
-        let far = H.o_watch + 16u * H.probes;
+        let far = H.o_watch + PROBE_REALS * H.probes;
         if (r_nz(R[far + 5u])) {
             R[sc + SC_END_AT] = r_mul(R[far + 6u], END_SCALE);
             hd.flags |= F_END_AT;

@@ -573,3 +573,54 @@ fn a_sensitive_chain_says_so() {
     assert_eq!(o.status, Status::Sensitive, "{:e}", o.error_estimate);
     assert!(o.error_estimate > 1e-8);
 }
+
+/// A probe's arrival is its leading pulse's peak (docs/SPEC.md §9): the
+/// first local maximum at least `LEADING_FRACTION` (a quarter) of the
+/// largest, found step by step from the quantity's value, rate and second
+/// rate, on sums of Gaussian bumps (height, centre) of width 0.1.
+#[test]
+fn arrival_is_the_leading_pulses_peak_not_a_precursor() {
+    use hertz_cradle::engine::granular::observe::{FirstPeak, LEADING_FRACTION, LEADING_RECORDS};
+    let w = 0.1f64;
+    let watch = |bumps: &[(f64, f64)]| {
+        let (mut first, mut lead) = (FirstPeak::<f64>::default(), FirstPeak::<f64>::default());
+        let floor = 1e-3;
+        for k in 0..=1000 {
+            let t = k as f64 * 0.01;
+            let mut q = [0.0; 3];
+            for &(a, c) in bumps {
+                let x = (t - c) / w;
+                let g = a * (-0.5 * x * x).exp();
+                q[0] += g;
+                q[1] += -x / w * g;
+                q[2] += (x * x - 1.0) / (w * w) * g;
+            }
+            first.see(t, q, floor);
+            lead.see_leading(t, q, floor);
+        }
+        (first.found.unwrap(), lead.leading64().unwrap())
+    };
+    let near =
+        |(t, v): (f64, f64), (tc, a): (f64, f64)| (t - tc).abs() < 1e-3 && (v - a).abs() < 1e-3 * a;
+    // A precursor's wiggle (a tenth of the pulse) ahead of the pulse: the
+    // first local maximum above the floor is the wiggle, the leading
+    // pulse's peak is the pulse.
+    let (first, lead) = watch(&[(0.1, 1.0), (1.0, 3.0)]);
+    assert!(near(first, (1.0, 0.1)), "{first:?}");
+    assert!(near(lead, (3.0, 1.0)), "{lead:?}");
+    // A dispersive wave's first lobe at half the largest is the arrival.
+    let (_, lead) = watch(&[(0.5, 1.0), (1.0, 3.0)]);
+    assert!(near(lead, (1.0, 0.5)), "{lead:?}");
+    // Peaks growing past the records kept: still the first at a quarter.
+    let mut bumps: Vec<(f64, f64)> = (0..LEADING_RECORDS + 2)
+        .map(|k| (0.3 + 0.05 * k as f64, 1.0 + k as f64))
+        .collect();
+    bumps.push((1.0, 8.0));
+    let (_, lead) = watch(&bumps);
+    assert!(near(lead, (1.0, 0.3)), "{lead:?}");
+    // A later peak more than 1/LEADING_FRACTION times higher makes the
+    // earlier one a precursor, whenever it comes.
+    let big = 1.01 / LEADING_FRACTION;
+    let (_, lead) = watch(&[(1.0, 1.0), (big, 6.0)]);
+    assert!(near(lead, (6.0, big)), "{lead:?}");
+}

@@ -17,7 +17,9 @@ use wgpu::util::DeviceExt;
 use super::device::map_read;
 use super::Gpu;
 use crate::backend::ChainJob;
-use crate::engine::granular::observe::{FirstPeak, WallWatch, FIRST_PEAK_REALS, WALL_WATCH_REALS};
+use crate::engine::granular::observe::{
+    FirstPeak, WallWatch, FIRST_PEAK_REALS, LEADING_FRACTION, LEADING_RECORDS, WALL_WATCH_REALS,
+};
 use crate::engine::granular::run::{self, overlap_ratio, Watch, CHECK_EVERY};
 use crate::engine::granular::step::{State, MARGIN_EXTRA, SINE_FACTORS};
 use crate::engine::granular::{Beads, ChainOutcome, Consts, Plan, END_MARGIN};
@@ -157,6 +159,7 @@ pub fn chain_shader(precision: Precision) -> String {
         ("HALF_PI", std::f64::consts::FRAC_PI_2),
         ("PI", std::f64::consts::PI),
         ("ONE_SIXTH", 1.0 / 6.0),
+        ("LEADING_FRACTION", LEADING_FRACTION),
     ];
     for (name, x) in reals {
         let _ = writeln!(s, "const {name}: real = {};", real_literal(x, precision));
@@ -171,7 +174,7 @@ pub fn chain_shader(precision: Precision) -> String {
             "fn r_count(lo: u32, hi: u32) -> real { return f64(hi) * 4294967296.0 + f64(lo); }\nfn r_finite(a: real) -> bool { return abs(a) <= 1.7976931348623157e308; }\n"
         }
     });
-    let consts: [(&str, String); 15] = [
+    let consts: [(&str, String); 19] = [
         ("WG: u32", format!("{CHAIN_WG}u")),
         ("MAX_STAGES: u32", format!("{MAX_STAGES}u")),
         ("MARGIN_EXTRA: u32", format!("{MARGIN_EXTRA}u")),
@@ -183,6 +186,10 @@ pub fn chain_shader(precision: Precision) -> String {
         ("F_KINKS: u32", format!("{F_KINKS}u")),
         ("F_REFINE: u32", format!("{F_REFINE}u")),
         ("SNAP_WIDTH: u32", format!("{SNAP_WIDTH}u")),
+        ("FIRST_PEAK_REALS: u32", format!("{FIRST_PEAK_REALS}u")),
+        ("PROBE_REALS: u32", format!("{PROBE_REALS}u")),
+        ("WALL_WATCH_REALS: u32", format!("{WALL_WATCH_REALS}u")),
+        ("LEADING_RECORDS: u32", format!("{LEADING_RECORDS}u")),
         ("SNAP_ENERGY: u32", format!("{SNAP_ENERGY}u")),
         ("ST_STEP_CAP: u32", format!("{ST_STEP_CAP}u")),
         ("ST_TIME_CAP: u32", format!("{ST_TIME_CAP}u")),

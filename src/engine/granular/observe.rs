@@ -110,50 +110,116 @@ pub fn bead_rates_with<R: Real>(
     (st.v[i], st.a[i], jerk)
 }
 
-/// The first peak of a quantity above a floor: watched step by step.
+/// How many record peaks [`FirstPeak::see_leading`] keeps.
+pub const LEADING_RECORDS: usize = 4;
+/// The leading pulse's peak is the first local maximum at least this
+/// fraction of the largest ([`FirstPeak::see_leading`]): a quarter keeps a
+/// dispersive wave's first lobe (its front, which travels at the sound
+/// speed; the lobes behind it lag) where it is a real part of the pulse,
+/// and drops a precursor's wiggle.
+pub const LEADING_FRACTION: f64 = 0.25;
+
+/// Peaks of a quantity above a floor, watched step by step.
+/// [`FirstPeak::see`] takes the first local maximum above the floor (the
+/// far end's peak, which ends a run by default); [`FirstPeak::see_leading`]
+/// finds the **leading pulse's peak** (a probe's arrival): the first local
+/// maximum at least [`LEADING_FRACTION`] of the largest one seen over the
+/// run, so that neither a precursor's wiggle ahead of the pulse nor the
+/// floor's value decides it.
 #[derive(Clone, Debug)]
 pub struct FirstPeak<R = f64> {
     last: Option<(R, [R; 3])>,
-    /// (time, value) of the first local maximum above the floor.
+    /// (time, value) of [`FirstPeak::see`]'s peak, once found.
     pub found: Option<(R, R)>,
+    /// [`FirstPeak::see_leading`]'s record peaks (each higher than every
+    /// local maximum before it), oldest first, those below half of the
+    /// highest dropped: the first is the leading pulse's peak so far.
+    records: [(R, R); LEADING_RECORDS],
+    count: usize,
 }
 
-impl<R> Default for FirstPeak<R> {
+impl<R: Real> Default for FirstPeak<R> {
     fn default() -> Self {
         FirstPeak {
             last: None,
             found: None,
+            records: [(R::zero(), R::zero()); LEADING_RECORDS],
+            count: 0,
         }
     }
 }
 
 impl<R: Real> FirstPeak<R> {
-    /// Watch the quantity with rates `q` = (value, rate, second rate) at `t`.
+    /// A local maximum inside the step from the last look to `t` (q: value,
+    /// rate, second rate): (time, value).
+    fn local_max(&self, t: R, q: [R; 3]) -> Option<(R, R)> {
+        let (t0, q0) = self.last?;
+        (q0[1] > R::zero() && q[1] <= R::zero()).then(|| {
+            let h = t - t0;
+            let c = quintic(
+                [q0[0], q[0]],
+                [q0[1] * h, q[1] * h],
+                [q0[2] * h * h, q[2] * h * h],
+            );
+            let (x, v) = peak(&c);
+            (t0 + x * h, v)
+        })
+    }
+
+    /// Watch the quantity with rates `q` = (value, rate, second rate) at
+    /// `t`: the first local maximum above `floor` is the peak.
     pub fn see(&mut self, t: R, q: [R; 3], floor: R) {
         if self.found.is_some() {
             return;
         }
-        let zero = R::zero();
-        if let Some((t0, q0)) = self.last {
-            if q0[1] > zero && q[1] <= zero {
-                let h = t - t0;
-                let c = quintic(
-                    [q0[0], q[0]],
-                    [q0[1] * h, q[1] * h],
-                    [q0[2] * h * h, q[2] * h * h],
-                );
-                let (x, v) = peak(&c);
-                if v > floor {
-                    self.found = Some((t0 + x * h, v));
+        if let Some((tp, v)) = self.local_max(t, q).filter(|&(_, v)| v > floor) {
+            self.found = Some((tp, v));
+        }
+        self.last = Some((t, q));
+    }
+
+    /// Watch as [`FirstPeak::see`] for the leading pulse's peak: a local
+    /// maximum above `floor` and above every earlier one is a record; the
+    /// records below [`LEADING_FRACTION`] of it are dropped (no later
+    /// maximum can make them the first at that fraction of the largest).
+    /// With [`LEADING_RECORDS`] kept, a new record beyond them replaces the
+    /// newest (the peak then found can be a later one than the first at
+    /// the fraction, never one below it). Whether this look took a new
+    /// record (the largest maximum so far).
+    pub fn see_leading(&mut self, t: R, q: [R; 3], floor: R) -> bool {
+        let mut taken = false;
+        if let Some((tp, v)) = self.local_max(t, q) {
+            let top = match self.count {
+                0 => floor,
+                k => self.records[k - 1].1,
+            };
+            if v > top {
+                let bar = R::of(LEADING_FRACTION) * v;
+                let drop = (0..self.count)
+                    .find(|&i| self.records[i].1 >= bar)
+                    .unwrap_or(self.count);
+                self.records.copy_within(drop..self.count, 0);
+                self.count -= drop;
+                if self.count == LEADING_RECORDS {
+                    self.count -= 1;
                 }
+                self.records[self.count] = (tp, v);
+                self.count += 1;
+                taken = true;
             }
         }
         self.last = Some((t, q));
+        taken
+    }
+
+    /// [`FirstPeak::see_leading`]'s peak: (time, value) in f64.
+    pub fn leading64(&self) -> Option<(f64, f64)> {
+        (self.count > 0).then(|| (self.records[0].0.to64(), self.records[0].1.to64()))
     }
 }
 
 /// Reals of a packed [`FirstPeak`] ([`FirstPeak::pack`]).
-pub const FIRST_PEAK_REALS: usize = 8;
+pub const FIRST_PEAK_REALS: usize = 9 + 2 * LEADING_RECORDS;
 /// Reals of a packed [`WallWatch`] ([`WallWatch::pack`]).
 pub const WALL_WATCH_REALS: usize = 7;
 
@@ -170,7 +236,8 @@ fn unpack_last<R: Real>(r: &[R]) -> Option<(R, [R; 3])> {
 }
 
 impl<R: Real> FirstPeak<R> {
-    /// As reals for the GPU twin: has_last, last t and q, found, its t and value.
+    /// As reals for the GPU twin: has_last, last t and q, found, its t and
+    /// value, the records' count, each record's t and value.
     pub fn pack(&self) -> [R; FIRST_PEAK_REALS] {
         let l = pack_last(&self.last);
         let zero = R::zero();
@@ -178,19 +245,36 @@ impl<R: Real> FirstPeak<R> {
             Some((t, v)) => (R::one(), t, v),
             None => (zero, zero, zero),
         };
-        [l[0], l[1], l[2], l[3], l[4], f, ft, fv]
+        let mut r = [zero; FIRST_PEAK_REALS];
+        r[..9].copy_from_slice(&[
+            l[0],
+            l[1],
+            l[2],
+            l[3],
+            l[4],
+            f,
+            ft,
+            fv,
+            R::of(self.count as f64),
+        ]);
+        for (k, &(t, v)) in self.records.iter().enumerate() {
+            r[9 + 2 * k] = t;
+            r[10 + 2 * k] = v;
+        }
+        r
     }
 
     pub fn unpack(r: &[R]) -> FirstPeak<R> {
+        let mut records = [(R::zero(), R::zero()); LEADING_RECORDS];
+        for (k, rec) in records.iter_mut().enumerate() {
+            *rec = (r[9 + 2 * k], r[10 + 2 * k]);
+        }
         FirstPeak {
             last: unpack_last(r),
             found: (r[5] != R::zero()).then_some((r[6], r[7])),
+            records,
+            count: r[8].to64() as usize,
         }
-    }
-
-    /// `found` in f64.
-    pub fn found64(&self) -> Option<(f64, f64)> {
-        self.found.map(|(t, v)| (t.to64(), v.to64()))
     }
 }
 

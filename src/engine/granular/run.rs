@@ -162,7 +162,8 @@ pub struct Watch<R = f64> {
     pub probes: Vec<(FirstPeak<R>, FirstPeak<R>)>,
     pub far: FirstPeak<R>,
     pub walls: [WallWatch<R>; 2],
-    /// FWHM (beads) taken when the last probe's pulse arrives.
+    /// FWHM (beads) taken when the last probe's velocity reaches its
+    /// largest peak ([`FirstPeak::see_leading`]'s newest record).
     pub width: f64,
     pub floor_v: R,
     pub floor_f: R,
@@ -188,15 +189,14 @@ impl<R: Real> Watch<R> {
         let half = R::of(0.5);
         for (k, &i) in b.probes.iter().enumerate() {
             let (vp, fp) = &mut self.probes[k];
-            let had = vp.found.is_some();
             let (fl, dl, sl) = force_rates(c, st, i);
             let (fr, dr, sr) = force_rates(c, st, i + 1);
             let (v, a, j) = bead_rates_with(c, st, i, t, dl, dr);
-            vp.see(t, [v, a, j], self.floor_v);
+            let taken = vp.see_leading(t, [v, a, j], self.floor_v);
             let base = half * (c.f0[i] + c.f0[i + 1]);
             let q = [half * (fl + fr) - base, half * (dl + dr), half * (sl + sr)];
-            fp.see(t, q, self.floor_f);
-            if k == last && !had && vp.found.is_some() {
+            fp.see_leading(t, q, self.floor_f);
+            if k == last && taken {
                 let v: Vec<f64> = st.v[st.lo..st.hi].iter().map(|v| v.to64()).collect();
                 self.width = fwhm(&v);
             }
@@ -271,13 +271,13 @@ pub fn finish<R: Real>(
         .iter()
         .zip(&obs.probes)
         .map(|(&i, (vp, fp))| {
-            let (arrival, peak_velocity) = vp.found64().unwrap_or((f64::NAN, f64::NAN));
+            let (arrival, peak_velocity) = vp.leading64().unwrap_or((f64::NAN, f64::NAN));
             let base = 0.5 * (b.f0[i] + b.f0[i + 1]);
             ProbeOutcome {
                 bead: i,
                 arrival,
                 peak_velocity,
-                peak_force: fp.found64().map_or(f64::NAN, |(_, f)| f + base),
+                peak_force: fp.leading64().map_or(f64::NAN, |(_, f)| f + base),
                 v_final: st.v[i],
             }
         })
