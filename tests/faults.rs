@@ -2,7 +2,7 @@
 //! when two runs write one output, when an output path is hostile, when
 //! resume and merge meet parts that do not belong together, and when a
 //! request is absurd. Every case asserts that nothing already written is lost
-//! and that whatever is claimed complete is correct (README, "Guarantees").
+//! and that whatever is claimed complete is correct (docs/GUIDE.md, "Guarantees").
 
 use std::fs;
 use std::path::{Path, PathBuf};
@@ -275,7 +275,7 @@ fn disk_full_at_random_points_loses_nothing_and_resume_completes_the_same_bytes(
 }
 
 /// Ctrl-C (SIGINT) during a sweep: the rows in hand are written, the run
-/// says how many are kept and how to continue, exits 130 (README's table),
+/// says how many are kept and how to continue, exits 130 (docs/GUIDE.md's table),
 /// and `--resume` completes the bytes of an uninterrupted run. SIGTERM the same.
 #[test]
 fn ctrl_c_keeps_the_rows_says_how_to_continue_and_resume_completes_them() {
