@@ -297,9 +297,9 @@ fn is_near(j: u32) -> bool {
     let db = r_add(R[H.o_d0 + j], p);
     let dd = r_abs(r_sub(p, ps));
     let zero = real(0.0);
-    let close = r_gt(dd, R[H.sc + SC_FLOOR]) && (r_gt(da, zero) || r_gt(db, zero))
+    let close = (r_gt(da, zero) || r_gt(db, zero))
         && r_lt(r_min(r_abs(da), r_abs(db)), r_mul(R[H.sc + SC_NEAR], dd));
-    return ((r_gt(da, zero) != r_gt(db, zero)) || close) && r_nz(R[H.o_k + j]);
+    return ((r_gt(da, zero) != r_gt(db, zero)) || close) && r_gt(dd, R[H.sc + SC_FLOOR]) && r_nz(R[H.o_k + j]);
 }
 
 // step::bead_rates: the velocity of bead k at the step's start (the
@@ -346,14 +346,26 @@ fn bead_rates(i: u32, start: bool, t: real, on: bool, lo: u32, hi: u32) -> array
     return array<real, 3>(v_at(i, start, lo, hi), acc, jerk);
 }
 
+// x, through a choice the compiler cannot see is always x (one_s is a 1.0
+// read from a buffer): a product passed through it cannot be factored
+// with another one that shares its factor.
+fn keep(x: real) -> real {
+    return select(x, real(0.0), one_s == 0.0);
+}
+
 // step::Hermite::new: [d0 … d5] of the quintic from (v, a, jerk) at both ends.
+// The products of h are kept: Mesa rewrote bb's h·a0 + 2·(0.5·h·(h·j0)) as
+// h·(a0 + h·j0) (x·a + y·a as (x + y)·a), which is not the CPU's rounding:
+// aa, bb and cc cancel, and c3 differed from the CPU's in its 12th digit.
+// (Found on lavapipe by writing both sides' coefficients out at one step;
+// the CPU's formula with that factoring reproduced the GPU's bits.)
 fn hermite(r0: array<real, 3>, r1: array<real, 3>, h: real) -> array<real, 6> {
-    let hh0 = r_mul(h, r_mul(h, r0[2]));
-    let c1 = r_mul(h, r0[1]);
+    let hh0 = keep(r_mul(h, r_mul(h, r0[2])));
+    let c1 = keep(r_mul(h, r0[1]));
     let c2 = r_mul(real(0.5), hh0);
     let aa = r_sub(r1[0], r_add(r_add(r0[0], c1), c2));
-    let bb = r_sub(r_mul(h, r1[1]), r_add(c1, r_mul(real(2.0), c2)));
-    let cc = r_sub(r_mul(h, r_mul(h, r1[2])), r_mul(real(2.0), c2));
+    let bb = r_sub(keep(r_mul(h, r1[1])), r_add(c1, r_mul(real(2.0), c2)));
+    let cc = r_sub(keep(r_mul(h, r_mul(h, r1[2]))), r_mul(real(2.0), c2));
     let c3 = r_add(r_sub(r_mul(real(10.0), aa), r_mul(real(4.0), bb)), r_mul(real(0.5), cc));
     let c4 = r_sub(r_sub(r_mul(real(7.0), bb), r_mul(real(15.0), aa)), cc);
     let c5 = r_add(r_sub(r_mul(real(6.0), aa), r_mul(real(3.0), bb)), r_mul(real(0.5), cc));

@@ -1143,13 +1143,10 @@ fn gpu_chain_kernel_gives_the_cpus_chain_outcomes() {
 /// plans, so the rows — values, estimates and verdicts — are the same bits
 /// on lavapipe: a dimer R 5 / 1.9 mm against a wall at tolerance 1e-9 (the
 /// local refinement on in the run, off in its twin) and at 1e-4 (reruns),
-/// a struck uniform chain, and a pulse. (Not yet the 100-bead
-/// dimer at 1e-9, nor a free dimer whose light beads rattle: with regions
-/// in most steps the kernel's refinement differs from the CPU's in the
-/// last bits of tail beads — 2e-19 m/s at bead 41 of a 60-bead uniform
-/// chain against a wall at 1e-9, from a step between 2000 and 2018 —
-/// in plain runs too: a difference that predates the error control, open
-/// in #43's notes.)
+/// a struck uniform chain, a pulse, the 100-bead dimer against a
+/// wall at 1e-9 (regions in most steps), a uniform chain against a wall at
+/// 1e-9 whose precursor reaches overlaps of 1e-300, and a free dimer whose
+/// light beads rattle.
 #[test]
 fn gpu_error_control_gives_the_cpus_rows() {
     use hertz_cradle::backend::{run_chains_controlled, ChainJob};
@@ -1159,6 +1156,21 @@ fn gpu_error_control_gives_the_cpus_rows() {
     let scenes = [
         (dimer.to_string(), 1e-9),
         (format!("{dimer}[stop]\nduration = 1.5e-3\n"), 1e-4),
+        // The chain: 100 beads of the same dimer against a wall at
+        // 1e-9 (regions in most steps; it differed by 1.9e-14 m/s once).
+        (dimer.replace("balls = 20", "balls = 100").replace("[5, 15]", "[10, 90]"), 1e-9),
+        // A uniform chain against a wall at 1e-9: its precursor runs ahead
+        // of the pulse with overlaps down to 1e-300 (Mesa's rewrite of the
+        // outside bead's interpolant showed here, 2e-19 m/s at bead 41).
+        (
+            "balls = 60\nradius = 0.005\n[walls]\nright = true\n[launch]\nballs = 1\nvelocity = 0.1\n[probes]\nbeads = [10, 50]\n".to_string(),
+            1e-9,
+        ),
+        // A free dimer whose light beads rattle (R 5 / 2.5 mm).
+        (
+            "balls = 40\nradius = 0.005\n[pattern]\nradius = [0.005, 0.0025]\n[launch]\nballs = 1\nvelocity = 0.1\n[probes]\nbeads = [10, 30]\n[stop]\nduration = 6e-4\n".to_string(),
+            1e-8,
+        ),
         (
             "balls = 40\nradius = 0.005\n[launch]\nballs = 1\nvelocity = 0.1\n[probes]\nbeads = [10, 30]\n".to_string(),
             1e-8,

@@ -448,15 +448,17 @@ fn crosses<R: Real>(d0: R, k: R, p_start: R, p: R) -> bool {
     ((d0 + p_start > zero) != (d0 + p > zero)) & (k != zero)
 }
 
-/// Whether a contact is near a crossing ([`Refine`]): it crossed, or one
-/// end of its step is closed, |Δδ| > floor and min |δ| < near·|Δδ|.
+/// Whether a contact is near a crossing ([`Refine`]): |Δδ| > floor, and it
+/// crossed, or one end of its step is closed and min |δ| < near·|Δδ|. A
+/// precursor's contact going from δ = 0 to 1e-200 crosses, but its change
+/// is below the floor: no region.
 #[inline(always)]
 fn is_near<R: Real>(d0: R, k: R, p_start: R, p: R, near: R, floor: R) -> bool {
     let zero = R::zero();
     let (da, db) = (d0 + p_start, d0 + p);
     let dd = (p - p_start).abs();
-    let close = (dd > floor) & ((da > zero) | (db > zero)) & (da.abs().min(db.abs()) < near * dd);
-    (((da > zero) != (db > zero)) | close) & (k != zero)
+    let close = ((da > zero) | (db > zero)) & (da.abs().min(db.abs()) < near * dd);
+    (((da > zero) != (db > zero)) | close) & (dd > floor) & (k != zero)
 }
 
 /// The kick after drift j of a step of length `h` with drift weights `w`:
@@ -515,8 +517,10 @@ fn step_portable<R: Real>(c: &Consts<R>, s: &mut State<R>, t0: R, h: R, m: &Subs
             }
             Some(r) => {
                 let (near, floor) = (R::of(r.near), R::of(r.floor));
+                // Every crossing takes the kink correction, near or not.
                 for j in 0..d0.len() {
-                    any |= is_near(d0[j], kk[j], ps[j], p[j], near, floor);
+                    any |= crosses(d0[j], kk[j], ps[j], p[j])
+                        | is_near(d0[j], kk[j], ps[j], p[j], near, floor);
                 }
             }
         }
@@ -792,5 +796,27 @@ fn redo<R: Real>(
     if right.is_some() {
         let dv = jb - s.scratch.imp[b];
         fix(s, b, dv);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{crosses, is_near};
+
+    /// A precursor's contact going from δ = 0 to 1e-200 crosses zero (the
+    /// kink correction takes it) but is not near a crossing: its change is
+    /// below the floor, so no region is redone for it. A real crossing, or
+    /// a contact closing to within `near`·|Δδ| of zero, is.
+    #[test]
+    fn a_precursor_is_no_region() {
+        let (k, near, floor) = (1e10, 3.0, 1e-13);
+        assert!(crosses(0.0, k, 0.0, 1e-200));
+        assert!(!is_near(0.0, k, 0.0, 1e-200, near, floor));
+        assert!(!is_near(0.0, k, -1e-14, 1e-14, near, floor));
+        assert!(is_near(0.0, k, -1e-9, 1e-9, near, floor));
+        assert!(is_near(0.0, k, 4e-9, 1e-9, near, floor));
+        assert!(!is_near(0.0, k, 1e-6, 1e-6 - 1e-9, near, floor));
+        // A contact with no stiffness (glue's absent spring) never is.
+        assert!(!is_near(0.0, 0.0, -1e-9, 1e-9, near, floor));
     }
 }
