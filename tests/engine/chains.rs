@@ -349,7 +349,8 @@ fn the_local_refinement_redoes_the_steps_around_crossings() {
     let err = |v: &[f64]| largest_difference(v, &reference) / 0.1;
     // Measured (t_s = 2.43 ts here): 5.9e-11 at ts/38 and 9.5e-13 at ts/76
     // (order 6.0; the reference's floor ~2e-13 from ts/91); as built 2.9e-10
-    // at ts/76; 0.05-0.13 regions per step of 6.3-6.6 beads.
+    // at ts/76; 0.05-0.13 regions per step of 6.3-6.6 beads (before the
+    // precursor's crossings stopped counting as near).
     let (coarse, fine) = (run(ts / 38.0, true), run(ts / 76.0, true));
     let plain = run(ts / 76.0, false);
     assert_eq!(plain.regions, 0);
@@ -373,8 +374,11 @@ fn the_local_refinement_redoes_the_steps_around_crossings() {
             per_step > 0.0 && per_step < 0.2,
             "{per_step} regions per step"
         );
+        // 2·reach + 1 = 7 beads, fewer where the window's edge clips a
+        // region (5.8 beads on average here since the precursor's
+        // crossings take no region).
         let beads = o.region_beads as f64 / o.regions as f64;
-        assert!((6.0..8.0).contains(&beads), "{beads} beads per region");
+        assert!((5.0..8.0).contains(&beads), "{beads} beads per region");
     }
 }
 
