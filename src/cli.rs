@@ -9,6 +9,7 @@ use crate::backend::BackendChoice;
 use crate::choice::Choice;
 use crate::engine::Model;
 use crate::output::TableKind;
+use crate::plot::heatmap::{Cmap, Scale};
 use crate::request::{RunSettings, SolverSettings, SweepRequest, SweepSettings};
 use crate::scene::{Method, Precision};
 
@@ -115,6 +116,18 @@ pub enum Command {
         /// Title [default: the sweep's description and the z column].
         #[arg(long)]
         title: Option<String>,
+        /// Colour of the low end: values below take it (panels of a figure share one scale) [default: the column's smallest].
+        #[arg(long, allow_negative_numbers = true, conflicts_with = "trace")]
+        vmin: Option<f64>,
+        /// Colour of the high end: values above take it [default: the column's largest].
+        #[arg(long, allow_negative_numbers = true, conflicts_with = "trace")]
+        vmax: Option<f64>,
+        /// Colour scale [default: auto: log when the values are positive and span over three decades].
+        #[arg(long, value_enum, default_value = "auto", conflicts_with = "trace")]
+        scale: Scale,
+        /// Colour map (coolwarm for signed columns, e.g. with --vmin -X --vmax X).
+        #[arg(long, value_enum, default_value = "viridis", conflicts_with = "trace")]
+        cmap: Cmap,
         /// Image to write: FILE.png or FILE.svg.
         #[arg(long, value_name = "FILE")]
         out: PathBuf,
@@ -220,7 +233,15 @@ macro_rules! value_enum {
         }
     )*};
 }
-value_enum!(Method, Precision, Model, BackendChoice, TableKind);
+value_enum!(
+    Method,
+    Precision,
+    Model,
+    BackendChoice,
+    TableKind,
+    Scale,
+    Cmap
+);
 
 /// Solver settings from the command line (a file's `[solver]` may give them
 /// too; the two must agree: `config`).

@@ -217,6 +217,10 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             z,
             wheres,
             title,
+            vmin,
+            vmax,
+            scale,
+            cmap,
             out,
         } => {
             let input = table.iter().chain(&trace).cloned().collect::<Vec<_>>();
@@ -235,6 +239,10 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                         z: z.unwrap_or_default(),
                         wheres,
                         title,
+                        vmin,
+                        vmax,
+                        scale,
+                        cmap,
                     },
                     out,
                 )?,

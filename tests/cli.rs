@@ -333,6 +333,70 @@ fn plots_are_valid_png_and_svg_with_clear_errors() {
         "velocity[0]=1",
     ]);
     assert!(e.contains("not a number"), "{e}");
+    // For a paper: a gray map and fixed colour limits (a value beyond them
+    // takes the end colour): every fill is a grey; viridis's are not.
+    let fills = |svg: &str| -> Vec<(u8, u8, u8)> {
+        let text = fs::read_to_string(svg).unwrap();
+        text.split("fill=\"#")
+            .skip(1)
+            .map(|t| {
+                let h = |i: usize| u8::from_str_radix(&t[i..i + 2], 16).unwrap();
+                (h(0), h(2), h(4))
+            })
+            .collect()
+    };
+    let gray = dir.path().join("g.svg").display().to_string();
+    let limits = ["--vmin", "-0.5", "--vmax", "0.5"];
+    success(
+        &[
+            &["plot", &csv, "--z", "v_2", "--out", &gray, "--cmap", "gray"][..],
+            &grid,
+            &limits,
+        ]
+        .concat(),
+    );
+    let f = fills(&gray);
+    assert!(
+        f.len() > 100 && f.iter().all(|&(r, g, b)| r == g && g == b),
+        "{f:?}"
+    );
+    success(
+        &[
+            &["plot", &csv, "--z", "v_2", "--out", &svg][..],
+            &grid,
+            &limits,
+        ]
+        .concat(),
+    );
+    assert!(fills(&svg).iter().any(|&(r, g, b)| r != g || g != b));
+    let e = bad_input(
+        &[
+            &[
+                "plot", &csv, "--z", "v_2", "--out", &svg, "--vmin", "1", "--vmax", "0.5",
+            ][..],
+            &grid,
+        ]
+        .concat(),
+    );
+    assert!(e.contains("--vmin 1") && e.contains("below --vmax"), "{e}");
+    let e = bad_input(
+        &[
+            &[
+                "plot", &csv, "--z", "v_2", "--out", &svg, "--scale", "log", "--vmin", "0",
+            ][..],
+            &grid,
+        ]
+        .concat(),
+    );
+    assert!(e.contains("--scale log") && e.contains("above 0"), "{e}");
+    let e = bad_input(
+        &[
+            &["plot", &csv, "--z", "v_2", "--out", &svg, "--cmap", "jet"][..],
+            &grid,
+        ]
+        .concat(),
+    );
+    assert!(e.contains("coolwarm"), "{e}");
     // a trace: space-time diagram
     let tr = dir.path().join("t.csv").display().to_string();
     success(&["run", "cradle-1", "--trace", &tr]);

@@ -3,6 +3,10 @@
 //! log axes where the values are log-spaced; a discrete palette for integer
 //! columns with few values (`ejected`, `contacts`), else viridis (log-scaled
 //! when z spans more than three decades, as errors do); empty cells grey.
+//! For a paper: `--vmin`/`--vmax` fix the colour limits (values beyond take
+//! the end colours, so several panels share one scale), `--scale` forces a
+//! linear or log colour scale, `--cmap` picks the map (a diverging one for
+//! signed columns such as a force minus its preload).
 
 use std::collections::HashMap;
 use std::path::Path;
@@ -11,7 +15,7 @@ use anyhow::Result;
 use plotters::coord::types::RangedCoordf64;
 use plotters::coord::Shift;
 use plotters::prelude::*;
-use plotters::style::colors::colormaps::ViridisRGB;
+use plotters::style::colors::colormaps::{BlackWhite, Copper, ViridisRGB};
 
 use super::data::{distinct, log_spaced, Table};
 use super::{drawing, fonts, label, FONT};
@@ -39,6 +43,98 @@ pub struct Args {
     /// `COL=VALUE` row filters (a slice of a sweep with more axes).
     pub wheres: Vec<String>,
     pub title: Option<String>,
+    /// Colour limits (`--vmin`, `--vmax`); either makes the colours continuous.
+    pub vmin: Option<f64>,
+    pub vmax: Option<f64>,
+    pub scale: Scale,
+    pub cmap: Cmap,
+}
+
+impl Default for Args {
+    fn default() -> Args {
+        Args {
+            x: String::new(),
+            y: String::new(),
+            z: String::new(),
+            wheres: vec![],
+            title: None,
+            vmin: None,
+            vmax: None,
+            scale: Scale::Auto,
+            cmap: Cmap::Viridis,
+        }
+    }
+}
+
+/// The colour scale of a continuous column (`--scale`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Scale {
+    /// Log when the values are positive and span more than three decades.
+    Auto,
+    Linear,
+    Log,
+}
+
+impl crate::choice::Choice for Scale {
+    const ALL: &'static [Self] = &[Scale::Auto, Scale::Linear, Scale::Log];
+    fn name(self) -> &'static str {
+        match self {
+            Scale::Auto => "auto",
+            Scale::Linear => "linear",
+            Scale::Log => "log",
+        }
+    }
+}
+
+/// The colour map of a continuous column (`--cmap`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Cmap {
+    Viridis,
+    /// Black to white (print).
+    Gray,
+    Copper,
+    /// Blue through light grey to red, for signed columns (centre 0 with
+    /// symmetric `--vmin`/`--vmax`).
+    Coolwarm,
+}
+
+impl crate::choice::Choice for Cmap {
+    const ALL: &'static [Self] = &[Cmap::Viridis, Cmap::Gray, Cmap::Copper, Cmap::Coolwarm];
+    fn name(self) -> &'static str {
+        match self {
+            Cmap::Viridis => "viridis",
+            Cmap::Gray => "gray",
+            Cmap::Copper => "copper",
+            Cmap::Coolwarm => "coolwarm",
+        }
+    }
+}
+
+impl Cmap {
+    /// The colour at h ∈ [0, 1].
+    fn at(self, h: f64) -> RGBColor {
+        let h = h.clamp(0.0, 1.0);
+        match self {
+            Cmap::Viridis => ViridisRGB.get_color(h as f32),
+            Cmap::Gray => BlackWhite.get_color(h as f32),
+            Cmap::Copper => Copper.get_color(h as f32),
+            Cmap::Coolwarm => {
+                // Moreland's end colours, through light grey.
+                let (a, m, b) = (
+                    (59.0, 76.0, 192.0),
+                    (221.0, 221.0, 221.0),
+                    (180.0, 4.0, 38.0),
+                );
+                let (p, q, t) = if h < 0.5 {
+                    (a, m, 2.0 * h)
+                } else {
+                    (m, b, 2.0 * h - 1.0)
+                };
+                let mix = |x: f64, y: f64| (x + (y - x) * t).round() as u8;
+                RGBColor(mix(p.0, q.0), mix(p.1, q.1), mix(p.2, q.2))
+            }
+        }
+    }
 }
 
 /// One axis of the grid.
@@ -219,8 +315,8 @@ pub fn number_in(v: f64, span: f64) -> String {
 
 enum Colours {
     Discrete(Vec<f64>),
-    /// (low, high, log) in colour coordinates.
-    Continuous(f64, f64, bool),
+    /// (low, high, log) in colour coordinates, and the map.
+    Continuous(f64, f64, bool, Cmap),
 }
 
 impl Colours {
@@ -230,17 +326,71 @@ impl Colours {
         }
         match self {
             Colours::Discrete(vals) => PALETTE[slot(vals, z)],
-            Colours::Continuous(lo, hi, log) => {
+            Colours::Continuous(lo, hi, log, cmap) => {
                 let c = if *log {
                     z.max(f64::MIN_POSITIVE).log10()
                 } else {
                     z
                 };
                 let h = if hi > lo { (c - lo) / (hi - lo) } else { 0.5 };
-                ViridisRGB.get_color(h.clamp(0.0, 1.0) as f32)
+                cmap.at(h)
             }
         }
     }
+}
+
+/// The cells' colours from their finite values `zf` (`uz`: the distinct
+/// ones): the discrete palette for a few integers unless a colour flag asks
+/// for a scale; else a map between the values' ends or `--vmin`/`--vmax`.
+fn colours(a: &Args, zf: &[f64], uz: Vec<f64>) -> Result<Colours, InputError> {
+    let asked =
+        a.vmin.is_some() || a.vmax.is_some() || a.scale != Scale::Auto || a.cmap != Cmap::Viridis;
+    if !asked && !uz.is_empty() && uz.len() <= PALETTE.len() && uz.iter().all(|z| z.fract() == 0.0)
+    {
+        return Ok(Colours::Discrete(uz));
+    }
+    let (lo, hi) = zf
+        .iter()
+        .fold((f64::MAX, f64::MIN), |(l, h), &z| (l.min(z), h.max(z)));
+    let (lo, hi) = if zf.is_empty() { (0.0, 1.0) } else { (lo, hi) };
+    let (lo, hi) = (a.vmin.unwrap_or(lo), a.vmax.unwrap_or(hi));
+    for (name, v) in [("--vmin", a.vmin), ("--vmax", a.vmax)] {
+        if let Some(v) = v.filter(|v| !v.is_finite()) {
+            return Err(crate::error::flag(name, &v.to_string(), "a finite number"));
+        }
+    }
+    if lo >= hi && (a.vmin.is_some() || a.vmax.is_some()) {
+        return Err(crate::error::flag(
+            "--vmin",
+            &number(lo),
+            &format!(
+                "below --vmax (or the column's largest value), {}",
+                number(hi)
+            ),
+        ));
+    }
+    let log = match a.scale {
+        Scale::Linear => false,
+        Scale::Log => {
+            if lo <= 0.0 {
+                return Err(crate::error::flag(
+                    "--scale",
+                    "log",
+                    &format!(
+                        "a colour range above 0 (its low end is {}: give --vmin > 0, or --scale linear)",
+                        number(lo)
+                    ),
+                ));
+            }
+            true
+        }
+        Scale::Auto => lo > 0.0 && hi / lo > 1e3,
+    };
+    Ok(if log {
+        Colours::Continuous(lo.log10(), hi.log10(), true, a.cmap)
+    } else {
+        Colours::Continuous(lo, hi, false, a.cmap)
+    })
 }
 
 /// Palette slot of a discrete value: small non-negative integers keep their
@@ -341,21 +491,7 @@ pub fn plot(input: &Path, a: &Args, out: &Path) -> Result<()> {
     let (ax, ay) = (Axis::new(&a.x, &ux, xcats), Axis::new(&a.y, &uy, ycats));
     let zf: Vec<f64> = cells.values().copied().filter(|z| z.is_finite()).collect();
     let uz = distinct(&zf);
-    let colours =
-        if !uz.is_empty() && uz.len() <= PALETTE.len() && uz.iter().all(|z| z.fract() == 0.0) {
-            Colours::Discrete(uz)
-        } else {
-            let (lo, hi) = zf
-                .iter()
-                .fold((f64::MAX, f64::MIN), |(l, h), &z| (l.min(z), h.max(z)));
-            if zf.is_empty() {
-                Colours::Continuous(0.0, 1.0, false)
-            } else if lo > 0.0 && hi / lo > 1e3 {
-                Colours::Continuous(lo.log10(), hi.log10(), true)
-            } else {
-                Colours::Continuous(lo, hi, false)
-            }
-        };
+    let colours = colours(a, &zf, uz)?;
     let title = a.title.clone().unwrap_or_else(|| {
         let sidecar = format!("{}.json", input.display());
         let desc = std::fs::read_to_string(sidecar)
@@ -463,7 +599,7 @@ fn draw<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, g: &Grid) -> Result<(
             }))
             .map_err(drawing)?;
         }
-        Colours::Continuous(lo, hi, log) => {
+        Colours::Continuous(lo, hi, log, _) => {
             let (lo, hi) = if hi > lo {
                 (*lo, *hi)
             } else {
