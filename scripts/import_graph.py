@@ -15,6 +15,10 @@ its children's as much as its own, as Rust's privacy has it): a circle is
 one between modules neither of which contains the other, such as two
 siblings calling each other.
 
+The same at folder level: a file is in its folder (src/sweep/parse/x.rs in
+sweep/parse, a mod.rs in its own), and two folders neither of which
+contains the other must not name each other, directly or around a circle.
+
 The front ends (`cli`, `explore`, `plot`, `progress`, `slurm`, `main`) may
 name the core; the core must not name them (the compiler also enforces it:
 `cargo build --lib --no-default-features`).
@@ -35,6 +39,39 @@ def module_of(p: Path):
     if parts == ["lib"]:
         return ()
     return tuple(parts)
+
+
+def components(edges):
+    """The strongly connected components of more than one node (Tarjan)."""
+    index, low, stack, on, sccs, counter = {}, {}, [], set(), [], [0]
+
+    def strong(v):
+        index[v] = low[v] = counter[0]
+        counter[0] += 1
+        stack.append(v)
+        on.add(v)
+        for w in edges.get(v, ()):
+            if w not in index:
+                strong(w)
+                low[v] = min(low[v], low[w])
+            elif w in on:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            comp = []
+            while True:
+                w = stack.pop()
+                on.discard(w)
+                comp.append(w)
+                if w == v:
+                    break
+            if len(comp) > 1:
+                sccs.append(sorted(comp))
+
+    sys.setrecursionlimit(10000)
+    for v in sorted(edges):
+        if v not in index:
+            strong(v)
+    return sccs
 
 
 def main():
@@ -118,36 +155,33 @@ def main():
         print("}")
         return 0
 
-    # Strongly connected components (Tarjan).
-    index, low, stack, on, sccs, counter = {}, {}, [], set(), [], [0]
-
-    def strong(v):
-        index[v] = low[v] = counter[0]
-        counter[0] += 1
-        stack.append(v)
-        on.add(v)
-        for w in edges.get(v, ()):
-            if w not in index:
-                strong(w)
-                low[v] = min(low[v], low[w])
-            elif w in on:
-                low[v] = min(low[v], index[w])
-        if low[v] == index[v]:
-            comp = []
-            while True:
-                w = stack.pop()
-                on.discard(w)
-                comp.append(w)
-                if w == v:
-                    break
-            if len(comp) > 1:
-                sccs.append(sorted(comp))
-
-    sys.setrecursionlimit(10000)
-    for v in sorted(edges):
-        if v not in index:
-            strong(v)
+    sccs = components(edges)
+    # The same at folder level: a file's folder (src/sweep/parse/x.rs is in
+    # sweep/parse; lib.rs and main.rs in the root), an edge between two
+    # folders neither of which contains the other.
+    folder = {m: (m if files[m].name == "mod.rs" else m[:-1]) for m in files}
+    fedges = {}
+    for a, bs in edges.items():
+        fa = folder[a]
+        for b in bs:
+            fb = folder[b]
+            if fa[: len(fb)] == fb or fb[: len(fa)] == fa:
+                continue
+            fedges.setdefault(fa, set()).add(fb)
+            fedges.setdefault(fb, set())
+    fsccs = components(fedges)
+    fname = lambda f: "src/" + "/".join(f) if f else "src"
     bad = 0
+    for comp in fsccs:
+        bad += 1
+        print("folder circle:", ", ".join(fname(f) for f in comp))
+        for a in comp:
+            for b in sorted(edges):
+                if folder[b] == a:
+                    for c in sorted(edges[b]):
+                        if folder[c] in comp and folder[c] != a and not (a[: len(folder[c])] == folder[c] or folder[c][: len(a)] == a):
+                            print(f"    {name(b)} -> {name(c)}")
+
     for comp in sccs:
         bad += 1
         print("circle:", ", ".join(name(m) for m in comp))
@@ -163,7 +197,7 @@ def main():
                 bad += 1
                 print(f"core names a front end: {name(a)} -> {name(b)}")
     n_edges = sum(len(b) for b in edges.values())
-    print(f"{len(files)} files, {n_edges} edges, {len(sccs)} circles")
+    print(f"{len(files)} files, {n_edges} edges, {len(sccs)} circles; {len(set(folder.values()))} folders, {len(fsccs)} folder circles")
     return 1 if bad else 0
 
 

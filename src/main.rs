@@ -9,10 +9,10 @@ use clap::Parser;
 use hertz_cradle::cli::{run_settings, Cli, Command, Format};
 use hertz_cradle::output::guard;
 use hertz_cradle::output::lock::OutputLock;
-use hertz_cradle::output::merge::merge;
 use hertz_cradle::output::row;
 use hertz_cradle::plot;
 use hertz_cradle::scene::builtin;
+use hertz_cradle::sweep::merge::merge;
 use hertz_cradle::{Hooks, InputError, RunRequest};
 
 fn main() -> ExitCode {
@@ -193,7 +193,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 }
                 .into());
             }
-            let Some(g) = hertz_cradle::output::fill::grid(&table)? else {
+            let Some(g) = hertz_cradle::sweep::fill::grid(&table)? else {
                 return Err(hertz_cradle::InputError::Data {
                     path: table,
                     what: "not a refined sweep's table (its sidecar has no `refine`)".into(),
@@ -201,7 +201,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 .into());
             };
             let n = hertz_cradle::output::publish::write_alone(&target, |w| {
-                hertz_cradle::output::fill::fill(&table, &g, &mut |row| {
+                hertz_cradle::sweep::fill::fill(&table, &g, &mut |row| {
                     w.write_all(row)
                         .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", target.display()))
                 })

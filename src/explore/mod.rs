@@ -101,7 +101,7 @@ fn load(path: &Path) -> Result<Data> {
         path: path.to_path_buf(),
         what,
     };
-    let mut r = csv::Reader::from_reader(crate::output::fill::full_csv(path)?);
+    let mut r = csv::Reader::from_reader(crate::sweep::fill::full_csv(path)?);
     let header: Vec<String> = r
         .headers()
         .map_err(|e| bad(format!("not a readable table ({e})")))?
@@ -162,7 +162,7 @@ fn load(path: &Path) -> Result<Data> {
     let mut axes = vec![];
     if let Some(sc) = &sc {
         if sc.sweep.get("layout").is_none() {
-            axes = sc.axes().unwrap_or_default();
+            axes = crate::sweep::axis::from_sidecar(sc).unwrap_or_default();
         }
     }
     let dims: Vec<u64> = axes.iter().map(|(_, v)| v.len() as u64).collect();

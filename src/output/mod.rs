@@ -2,10 +2,8 @@
 
 pub mod chain_row;
 pub mod failpoint;
-pub mod fill;
 pub mod guard;
 pub mod lock;
-pub mod merge;
 pub mod parquet_file;
 pub mod partial;
 pub mod publish;

@@ -229,18 +229,4 @@ impl Sidecar {
             ..Default::default()
         }
     }
-
-    /// The sweep's axes as the sidecar records them: name and values.
-    pub fn axes(&self) -> Option<Vec<(String, crate::sweep::axis::Values)>> {
-        self.sweep["axes"]
-            .as_array()?
-            .iter()
-            .map(|a| {
-                Some((
-                    a["name"].as_str()?.to_string(),
-                    crate::sweep::axis::Values::from_json(&a["values"])?,
-                ))
-            })
-            .collect()
-    }
 }

@@ -20,9 +20,9 @@ fn data_err(path: &Path, what: impl Into<String>) -> InputError {
 
 impl Table {
     pub fn read(path: &Path) -> Result<Table, InputError> {
-        // A refined sweep's table is drawn as the full grid (`output::fill`),
+        // A refined sweep's table is drawn as the full grid (`sweep::fill`),
         // a Parquet table read as the CSV's text.
-        let source = crate::output::fill::full_csv(path).map_err(|e| {
+        let source = crate::sweep::fill::full_csv(path).map_err(|e| {
             let e = match e.downcast::<InputError>() {
                 Ok(input) => return input,
                 Err(e) => e,

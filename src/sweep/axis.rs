@@ -259,6 +259,20 @@ impl Sample {
     }
 }
 
+/// A sweep's axes as its sidecar records them: name and values.
+pub fn from_sidecar(sc: &crate::output::sidecar::Sidecar) -> Option<Vec<(String, Values)>> {
+    sc.sweep["axes"]
+        .as_array()?
+        .iter()
+        .map(|a| {
+            Some((
+                a["name"].as_str()?.to_string(),
+                Values::from_json(&a["values"])?,
+            ))
+        })
+        .collect()
+}
+
 impl Values {
     /// The values as their `Serialize` wrote them (a sidecar's sweep).
     pub fn from_json(j: &serde_json::Value) -> Option<Values> {

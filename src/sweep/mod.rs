@@ -5,6 +5,8 @@
 pub mod axis;
 pub mod chains;
 pub mod design;
+pub mod fill;
+pub mod merge;
 mod parse;
 pub mod pipeline;
 pub mod points;

@@ -11,8 +11,8 @@ use std::path::Path;
 
 use anyhow::Result;
 
+use super::axis::{Value, Values};
 use crate::error::InputError;
-use crate::sweep::axis::{Value, Values};
 
 /// What a refined table's sidecar says of its grid.
 pub struct Grid {
@@ -31,17 +31,16 @@ fn bad(path: &Path, what: impl Into<String>) -> anyhow::Error {
 /// The grid of a refined table (from its sidecar), or `None` when the table
 /// is not refined.
 pub fn grid(table: &Path) -> Result<Option<Grid>> {
-    let Some(sc) = super::sidecar::read_checked(table)? else {
+    let Some(sc) = crate::output::sidecar::read_checked(table)? else {
         return Ok(None);
     };
     if sc.refine.is_none() {
         return Ok(None);
     }
-    let axes = sc
-        .axes()
+    let axes = super::axis::from_sidecar(&sc)
         .ok_or_else(|| {
             bad(
-                &super::sidecar::path(table),
+                &crate::output::sidecar::path(table),
                 "a refined table's sidecar without readable axis values",
             )
         })?
@@ -55,7 +54,7 @@ pub fn grid(table: &Path) -> Result<Option<Grid>> {
 /// Any table as CSV text: a Parquet table as the CSV it stands for (built
 /// in memory), a CSV as it is.
 pub fn csv_of(table: &Path) -> Result<Box<dyn Read>> {
-    if !super::parquet_file::is_parquet(table) {
+    if !crate::output::parquet_file::is_parquet(table) {
         return Ok(Box::new(crate::error::open_input(
             table,
             crate::error::MAX_TABLE_BYTES,
@@ -64,7 +63,7 @@ pub fn csv_of(table: &Path) -> Result<Box<dyn Read>> {
     // A corrupt file is the input's fault: name it (exit 2), not the
     // Parquet reader's words alone.
     let (header, rows) =
-        super::parquet_file::read_text(table).map_err(|e| crate::InputError::Data {
+        crate::output::parquet_file::read_text(table).map_err(|e| crate::InputError::Data {
             path: table.to_path_buf(),
             what: format!("not a readable Parquet table ({e:#})"),
         })?;
@@ -74,7 +73,7 @@ pub fn csv_of(table: &Path) -> Result<Box<dyn Read>> {
             if k > 0 {
                 bytes.push(b',');
             }
-            super::row::push_csv_field(&mut bytes, f);
+            crate::output::row::push_csv_field(&mut bytes, f);
         }
         bytes.push(b'\n');
     }
@@ -114,7 +113,7 @@ pub fn fill(table: &Path, g: &Grid, out: &mut dyn FnMut(&[u8]) -> Result<()>) ->
         if r.read_until(b'\n', &mut line)? == 0 {
             break;
         }
-        let id: u64 = super::row::line_id(&line)
+        let id: u64 = crate::output::row::line_id(&line)
             .filter(|&id| id < total)
             .ok_or_else(|| {
                 bad(
@@ -128,7 +127,7 @@ pub fn fill(table: &Path, g: &Grid, out: &mut dyn FnMut(&[u8]) -> Result<()>) ->
         return Err(bad(table, "has no rows"));
     }
     let sites: Vec<u64> = rows.keys().copied().collect();
-    let near = crate::sweep::refine::nearest(&g.dims, &sites);
+    let near = super::refine::nearest(&g.dims, &sites);
     let mut steps = vec![1u64; g.dims.len()];
     for k in (0..g.dims.len().saturating_sub(1)).rev() {
         steps[k] = steps[k + 1] * g.dims[k + 1];
@@ -147,7 +146,7 @@ pub fn fill(table: &Path, g: &Grid, out: &mut dyn FnMut(&[u8]) -> Result<()>) ->
         let mut tail = Vec::new();
         for f in rec.iter().skip(1 + g.axes.len()) {
             tail.push(b',');
-            super::row::push_csv_field(&mut tail, f);
+            crate::output::row::push_csv_field(&mut tail, f);
         }
         tail.push(b'\n');
         tails.insert(id, tail);
@@ -165,10 +164,10 @@ pub fn fill(table: &Path, g: &Grid, out: &mut dyn FnMut(&[u8]) -> Result<()>) ->
             let i = ((id / steps[k]) % g.dims[k]) as usize;
             match a.get(i) {
                 Value::Num(x) => {
-                    super::row::num_into(x, &mut s);
+                    crate::output::row::num_into(x, &mut s);
                     buf.extend_from_slice(s.as_bytes());
                 }
-                Value::Text(t) => super::row::push_csv_field(&mut buf, &t),
+                Value::Text(t) => crate::output::row::push_csv_field(&mut buf, &t),
             }
         }
         buf.extend_from_slice(&tails[&near[id as usize]]);

@@ -16,13 +16,13 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 
-use super::parquet_file::{is_parquet, PartFile};
-use super::partial::partial_path;
-use super::publish::write_atomic;
-use super::sidecar::{Level, Sidecar};
-use super::TableKind;
+use super::session::Fingerprint;
 use crate::error::InputError;
-use crate::sweep::session::Fingerprint;
+use crate::output::parquet_file::{is_parquet, PartFile};
+use crate::output::partial::partial_path;
+use crate::output::publish::write_atomic;
+use crate::output::sidecar::{Level, Sidecar};
+use crate::output::TableKind;
 
 fn bad(path: &Path, what: impl Into<String>) -> anyhow::Error {
     InputError::Data {
@@ -52,8 +52,8 @@ impl Part {
 }
 
 fn read_part(p: &Path) -> Result<Part> {
-    let sc = super::sidecar::path(p);
-    let sidecar = match super::sidecar::read_checked(p) {
+    let sc = crate::output::sidecar::path(p);
+    let sidecar = match crate::output::sidecar::read_checked(p) {
         Ok(Some(s)) => s,
         Ok(None) => {
             return Err(bad(
@@ -191,7 +191,7 @@ pub fn merge(inputs: &[PathBuf], out: &Path) -> Result<u64> {
                 sparse: p.sparse(),
             })
             .collect::<Vec<_>>();
-        super::parquet_file::merge(&files, &tmp, &|p, what| bad(p, what))
+        crate::output::parquet_file::merge(&files, &tmp, &|p, what| bad(p, what))
     } else {
         copy_rows(&parts, &tmp)
     };
@@ -201,12 +201,12 @@ pub fn merge(inputs: &[PathBuf], out: &Path) -> Result<u64> {
     let n = r?;
 
     let mut sc = merged_sidecar(&parts, &key0, total, n);
-    sc.table = Some(super::sidecar::seal(&tmp, n)?);
+    sc.table = Some(crate::output::sidecar::seal(&tmp, n)?);
     write_atomic(
-        &super::sidecar::path(out),
-        super::sidecar::text(&sc)?.as_bytes(),
+        &crate::output::sidecar::path(out),
+        crate::output::sidecar::text(&sc)?.as_bytes(),
     )?;
-    super::publish::publish(&tmp, out)?;
+    crate::output::publish::publish(&tmp, out)?;
     Ok(n)
 }
 
@@ -251,8 +251,8 @@ fn copy_rows(parts: &[Part], tmp: &Path) -> Result<u64> {
                     "its last row is incomplete (an interrupted run? finish it with --resume)",
                 ));
             }
-            let id =
-                super::row::line_id(&line).ok_or_else(|| bad(&p.path, "a row without an id"))?;
+            let id = crate::output::row::line_id(&line)
+                .ok_or_else(|| bad(&p.path, "a row without an id"))?;
             if p.sparse() && id >= next && id < p.ids.1 {
                 next = id;
             }
