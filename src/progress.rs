@@ -1,7 +1,8 @@
-//! A progress bar on stderr for the front ends (`cradle sweep`, the Python
-//! module): a [`crate::sweep::session::OnProgress`] drawn with indicatif,
+//! A progress bar on stderr for the command line (`cradle sweep`): a
+//! [`crate::sweep::session::OnProgress`] drawn with indicatif,
 //! shown only when stderr is a terminal. Behind the `progress` feature: the
-//! core reports progress through the callback alone.
+//! core reports progress through the callback alone (the Python module
+//! draws its own bar, or calls the user's function, from it).
 
 use std::io::IsTerminal;
 use std::sync::Arc;

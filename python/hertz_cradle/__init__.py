@@ -19,8 +19,10 @@ from __future__ import annotations
 
 import json
 import os
+import sys
 import tempfile
-from typing import Any, Dict, List, Mapping, Optional, Tuple, Union
+import time
+from typing import Any, Callable, Dict, List, Mapping, Optional, Tuple, Union
 
 import pyarrow as pa
 import pyarrow.csv as pcsv
@@ -86,6 +88,30 @@ def _read_table(path: str, columns: List[Tuple[str, str]]) -> pa.Table:
     return table.cast(pa.schema(fields))
 
 
+def _bar(stream=None):
+    """The default progress: a bar redrawn on one line of stderr, where a
+    person sees it (a terminal, or a Jupyter notebook's output), else
+    None."""
+    stream = stream or sys.stderr
+    try:
+        shown = stream.isatty() or "ipykernel" in sys.modules
+    except (AttributeError, ValueError):
+        shown = False
+    if not shown:
+        return None
+    start = time.monotonic()
+
+    def draw(done: int, total: int) -> None:
+        filled = int(40 * done / total) if total else 0
+        rate = done / max(time.monotonic() - start, 1e-9)
+        line = f"{'#' * filled}{'.' * (40 - filled)} {done}/{total} scenes  {rate:.0f} scenes/s"
+        end = "\n" if done >= total else ""
+        stream.write("\r" + line + end)
+        stream.flush()
+
+    return draw
+
+
 def sweep(
     spec: Spec,
     *,
@@ -95,7 +121,7 @@ def sweep(
     method: Optional[str] = None,
     model: Optional[str] = None,
     threads: Optional[int] = None,
-    progress: bool = True,
+    progress: Union[bool, Callable[[int, int], Any]] = True,
     out: Optional[Union[str, "os.PathLike[str]"]] = None,
     format: Optional[str] = None,
     resume: bool = False,
@@ -112,6 +138,12 @@ def sweep(
     ``precision`` ("f32", "f64", "df64"), ``tolerance``, ``method``, ``model``
     ("hertz", "hard-sphere", "closure"), ``threads``, ``shard`` ("K/N"),
     ``error_estimate``.
+
+    ``progress``: ``True`` draws a bar on stderr where someone sees it (a
+    terminal, or a Jupyter notebook: one line, redrawn); a callable is
+    called as ``progress(done, total)`` (scenes written, scenes in all) as
+    the count moves, at most every 50 ms and once at the end, e.g. to feed
+    ``tqdm``; an exception it raises stops the sweep; ``False``: nothing.
 
     The table has exactly the CSV's columns and values (``id``, one column
     per axis, ``status``, ``v_0`` ...), typed as in the Parquet output:
@@ -143,7 +175,7 @@ def sweep(
             resume=bool(resume),
             shard=None if shard is None else str(shard),
             error_estimate=bool(error_estimate),
-            progress=bool(progress),
+            progress=progress if callable(progress) else (_bar() if progress else None),
         )
         return _read_table(target, summary["columns"])
 

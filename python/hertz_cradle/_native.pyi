@@ -1,7 +1,7 @@
 """Type stubs of the Rust extension (python/src/lib.rs), a client of the
 core's typed API. Use the functions of ``hertz_cradle`` itself."""
 
-from typing import Any, Dict, List, Optional, Tuple
+from typing import Callable, Any, Dict, List, Optional, Tuple
 
 __version__: str
 
@@ -23,7 +23,7 @@ def sweep(
     resume: bool = False,
     shard: Optional[str] = None,
     error_estimate: bool = False,
-    progress: bool = True,
+    progress: Optional[Callable[[int, int], Any]] = None,
 ) -> Dict[str, Any]:
     """Run a sweep into ``out``; a summary with ``columns`` [(name, type)]."""
 

@@ -13,7 +13,7 @@
 //! raised once it has stopped. No panic crosses into Python: a panic in the
 //! sweep thread becomes RuntimeError.
 
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Condvar, Mutex};
 use std::time::Duration;
 
@@ -24,7 +24,7 @@ use hertz_cradle::output::row::{self, ColType, Field};
 use hertz_cradle::output::TableKind;
 use hertz_cradle::scene::{builtin, Method, Precision};
 use hertz_cradle::{
-    Error, Hooks, RunRequest, RunSettings, SolverSettings, SweepRequest, SweepSettings,
+    Error, Hooks, Progress, RunRequest, RunSettings, SolverSettings, SweepRequest, SweepSettings,
 };
 use pyo3::exceptions::{PyKeyboardInterrupt, PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
@@ -90,12 +90,15 @@ fn type_name(t: ColType) -> &'static str {
 /// Run a sweep: the sweep file `path`, or `text` (TOML, or JSON when
 /// `json`) named `name` in messages, whose relative `scene = "file"` is
 /// found from `base_dir`; written to `out`; the other arguments are
-/// `cradle sweep`'s flags. Returns a summary: scenes, ok, wall_s, backend,
-/// already_complete, and columns (name, type) of the table written.
+/// `cradle sweep`'s flags; `progress`, if given, is called as
+/// `progress(done, total)` (scenes) from this thread, with the GIL, when the
+/// count has moved (every 50 ms at most) and once at the end. Returns a
+/// summary: scenes, ok, wall_s, backend, already_complete, and columns
+/// (name, type) of the table written.
 #[pyfunction]
 #[pyo3(signature = (path, text, json, name, base_dir, out, *, backend="auto", precision=None,
     tolerance=None, method=None, model=None, threads=None, format=None, resume=false,
-    shard=None, error_estimate=false, progress=true))]
+    shard=None, error_estimate=false, progress=None))]
 #[allow(clippy::too_many_arguments)]
 fn sweep(
     py: Python<'_>,
@@ -115,7 +118,7 @@ fn sweep(
     resume: bool,
     shard: Option<String>,
     error_estimate: bool,
-    progress: bool,
+    progress: Option<Py<PyAny>>,
 ) -> PyResult<Py<PyDict>> {
     let settings = SweepSettings {
         backend: BackendChoice::parse_flag("--backend", backend).map_err(|e| to_py(e.into()))?,
@@ -149,14 +152,19 @@ fn sweep(
     let cancel = Arc::new(AtomicBool::new(false));
     // Set by the worker when it ends.
     let finished = Arc::new((Mutex::new(false), Condvar::new()));
+    // The rows written and the total, as the run tells them; `progress` is
+    // called from here, where the GIL is.
+    let counts = Arc::new((AtomicU64::new(0), AtomicU64::new(0)));
     let worker = {
-        let (cancel, finished) = (cancel.clone(), finished.clone());
+        let (cancel, finished, counts) = (cancel.clone(), finished.clone(), counts.clone());
         std::thread::spawn(move || {
             let r = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-                let bar = hertz_cradle::progress::Bar::stderr(progress);
                 req.run(Hooks {
                     command,
-                    on_progress: Some(bar.callback()),
+                    on_progress: Some(Arc::new(move |p: Progress| {
+                        counts.1.store(p.total, Ordering::Relaxed);
+                        counts.0.store(p.done, Ordering::Relaxed);
+                    })),
                     on_row: None,
                     cancel: Some(cancel),
                 })
@@ -167,6 +175,24 @@ fn sweep(
         })
     };
     let mut interrupted = None;
+    let mut told = None;
+    // Tell `progress` the counts if they moved; an exception it raises
+    // stops the run like an interrupt.
+    let mut tell = |py: Python<'_>, interrupted: &mut Option<PyErr>| {
+        let Some(cb) = progress.as_ref() else { return };
+        let now = (
+            counts.0.load(Ordering::Relaxed),
+            counts.1.load(Ordering::Relaxed),
+        );
+        if now.1 == 0 || told == Some(now) || interrupted.is_some() {
+            return;
+        }
+        told = Some(now);
+        if let Err(e) = cb.call1(py, now) {
+            cancel.store(true, Ordering::SeqCst);
+            *interrupted = Some(e);
+        }
+    };
     loop {
         let done = py.detach(|| {
             let g = finished.0.lock().unwrap_or_else(|e| e.into_inner());
@@ -176,6 +202,7 @@ fn sweep(
                 .unwrap_or_else(|e| e.into_inner());
             *g
         });
+        tell(py, &mut interrupted);
         if done {
             break;
         }

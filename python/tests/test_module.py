@@ -98,6 +98,24 @@ def test_a_dict_a_toml_string_and_a_file_are_the_same_sweep(tmp_path):
     assert hc.sweep(str(run / "sweep.toml"), backend="cpu", progress=False).equals(a)
 
 
+def test_progress_is_a_callable_that_sees_every_scene_and_can_stop_the_sweep(tmp_path):
+    # Told (done, total) as the count moves, from the calling thread, ending
+    # at every scene: what a notebook feeds to tqdm.
+    seen = []
+    t = hc.sweep(MASS_GAP, backend="cpu", threads=1, progress=lambda d, n: seen.append((d, n)))
+    assert seen and seen[-1] == (t.num_rows, t.num_rows)
+    assert all(n == t.num_rows for _, n in seen)
+    assert [d for d, _ in seen] == sorted({d for d, _ in seen})
+    # An exception in it stops the sweep and reaches the caller.
+    def stop(done, total):
+        raise RuntimeError(f"stop at {done} of {total}")
+
+    with pytest.raises(RuntimeError, match="stop at"):
+        hc.sweep(MASS_GAP, backend="cpu", progress=stop, out=tmp_path / "m.csv")
+    # The default bar draws only where someone sees it: not into a pipe.
+    assert hc._bar(open(os.devnull, "w")) is None
+
+
 def test_bad_input_raises_value_error_with_the_clis_message(tmp_path):
     bad = dict(SMALL, axis=[{"param": "gap", "linspace": [0.0, 2e-5, 0]}])
     with pytest.raises(ValueError, match="at least 1 point"):
