@@ -12,14 +12,15 @@
 //! `cargo run --release --example chain_contract -- target/chain_contract.json [name-filter]`
 //!
 //! With `--backend cpu|gpu` and `--precision f64|df64` (lists, comma
-//! separated) it runs only the contract's controlled runs, every chain and
-//! tolerance of one backend and precision as one batch (a sweep's path),
-//! each run labelled with both (`--skip NAME`: leave out the chains whose
+//! separated) it runs only the contract's controlled runs, every chain of
+//! one backend, precision and tolerance as one batch (a sweep's path),
+//! each run labelled with its backend and precision (`--skip NAME`: leave out the chains whose
 //! name contains NAME): the contract on a lent GPU
 //! (`scripts/chain_contract_table.py --backends`).
 
 use hertz_cradle::backend::gpu::{find_adapter, Gpu, Want};
 use hertz_cradle::backend::{cpu::Cpu, run_chains_controlled, Backend, ChainJob};
+use hertz_cradle::choice::Choice;
 use hertz_cradle::engine::granular::{self, control, Beads, ChainOutcome, NoRows};
 use hertz_cradle::engine::{Overrides, Solver};
 use hertz_cradle::scene::{Precision, Scene};
@@ -188,10 +189,8 @@ fn across(path: &str, only: Option<&str>, skip: Option<&str>, backends: &str, pr
             other => panic!("--backend {other}: cpu or gpu"),
         };
         for precision in precisions.split(',') {
-            let prec = *Precision::ALL
-                .iter()
-                .find(|p| p.name() == precision)
-                .unwrap_or_else(|| panic!("--precision {precision}: f64 or df64"));
+            let prec =
+                Precision::parse_flag("--precision", precision).unwrap_or_else(|e| panic!("{e}"));
             for tol in [1e-4, 1e-6, 1e-8] {
                 let jobs: Vec<ChainJob> = family
                     .iter()

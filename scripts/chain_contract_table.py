@@ -40,7 +40,9 @@ def difference(vs, a, b):
 
 
 def verdict(r, t, floor):
-    """met, flagged (inaccurate or sensitive), unresolved or silent."""
+    """met, flagged (inaccurate or sensitive), unresolved (the reference's
+    own error, floor/10, above the tolerance: it cannot tell) or silent
+    (every other row: the contract's failure)."""
     if r["status"] in ("inaccurate", "sensitive"):
         return "flagged"
     if floor > t:
@@ -107,20 +109,15 @@ def main():
         cells = []
         for t in tols:
             r, p = by[("controlled", t)], by[("plain", t)]
-            ok = r["status"] == "ok"
-            if r["status"] in ("inaccurate", "sensitive"):
-                verdict = r["status"]
-                tally[t]["flagged"] += 1
-            elif floor > t:
-                # The reference cannot tell whether the tolerance is met.
-                verdict = "unresolved (" + r["status"] + ")"
-                tally[t]["unresolved"] += 1
-            elif ok and (r["error"] <= t or r["error"] <= floor):
-                verdict = "met"
-                tally[t]["met"] += 1
-            else:
-                verdict = "SILENT" if ok else r["status"]
-                tally[t]["silent"] += 1
+            v = verdict(r, t, floor)
+            tally[t][v] += 1
+            # The cell names the status where the tally's word would hide it.
+            label = {
+                "flagged": r["status"],
+                "unresolved": "unresolved (" + r["status"] + ")",
+                "met": "met",
+                "silent": "SILENT" if r["status"] == "ok" else r["status"],
+            }[v]
             est = r["estimate"]
             if est is not None and r["error"] > floor and r["error"] > 0:
                 tally[t]["ratios"].append(est / r["error"])
@@ -128,7 +125,7 @@ def main():
                     low.append(f"{c['name']} at {t:g}: estimate {est:.2e}, error {r['error']:.2e}")
             tally[t]["cost"].append(r["bead_steps"] / p["bead_steps"])
             tally[t]["time"].append(r["seconds"] / max(p["seconds"], 1e-9))
-            cells.append(f"{verdict} {r['error']:.1e} / {est if est is not None else float('nan'):.1e} "
+            cells.append(f"{label} {r['error']:.1e} / {est if est is not None else float('nan'):.1e} "
                          f"(plain {p['error']:.1e})")
         rows.append(f"| {c['name']} | {e['ref_error']:.1e} | " + " | ".join(cells) + " |")
         # Calibration pairs: the run at each first guess against its twin

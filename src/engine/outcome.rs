@@ -54,11 +54,6 @@ impl Status {
         Status::Sensitive,
     ];
 
-    /// The status named `name` (as [`Status::name`] writes it).
-    pub fn from_name(name: &str) -> Option<Status> {
-        Status::ALL.into_iter().find(|s| s.name() == name)
-    }
-
     pub fn name(self) -> &'static str {
         match self {
             Status::Ok => "ok",
@@ -71,6 +66,14 @@ impl Status {
             Status::Inaccurate => "inaccurate",
             Status::Sensitive => "sensitive",
         }
+    }
+}
+
+/// The statuses as the tables write them (`Choice::from_name` reads one).
+impl crate::choice::Choice for Status {
+    const ALL: &'static [Self] = &Status::ALL;
+    fn name(self) -> &'static str {
+        Status::name(self)
     }
 }
 

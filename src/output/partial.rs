@@ -379,6 +379,7 @@ fn whole_row(line: &[u8], columns: usize, status: Option<usize>) -> Option<bool>
     rec.get(0)?.parse::<u64>().ok()?;
     match status {
         Some(i) => {
+            use crate::choice::Choice;
             let s = crate::engine::Status::from_name(rec.get(i)?)?;
             Some(s == crate::engine::Status::Ok)
         }

@@ -376,8 +376,8 @@ impl Serialize for Values {
 
 /// Value `i` of `num` evenly spaced ones, start + i·step; the last is `stop`.
 pub fn linspace_at(start: f64, stop: f64, num: usize, i: usize) -> f64 {
-    // Both ends exactly as written (numpy's geomspace pins them too):
-    // exp(ln(0.004)) is 0.004000000000000002, which a filter on 0.004 misses.
+    // Both ends exactly as written, as in `logspace_at` (here only a start
+    // of −0.0 would differ: −0.0 + 0·step is +0.0).
     if num == 1 || i == 0 {
         return start;
     }

@@ -132,8 +132,9 @@ pub struct FirstPeak<R = f64> {
     /// (time, value) of [`FirstPeak::see`]'s peak, once found.
     pub found: Option<(R, R)>,
     /// [`FirstPeak::see_leading`]'s record peaks (each higher than every
-    /// local maximum before it), oldest first, those below half of the
-    /// highest dropped: the first is the leading pulse's peak so far.
+    /// local maximum before it), oldest first, those below
+    /// [`LEADING_FRACTION`] of the highest dropped: the first is the
+    /// leading pulse's peak so far.
     records: [(R, R); LEADING_RECORDS],
     count: usize,
 }
