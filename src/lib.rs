@@ -36,6 +36,7 @@ pub mod backend;
 pub mod choice;
 pub mod engine;
 pub mod error;
+pub mod model;
 pub mod output;
 pub mod request;
 pub mod scene;

@@ -242,12 +242,10 @@ impl SweepRequest {
         let format = TableKind::resolve(settings.format, &out_given)?;
         let solver = Solver::resolve(&sweep.base, &overrides)?;
         let precision = solver.precision;
-        if sweep.chains.is_some() {
-            granular::check_solver(&solver)?;
-        }
+        sweep.model.check_solver(&solver)?;
         // Chains always carry their error estimate (docs/SPEC.md §9): the
         // flag is the cradles' (and part of the fingerprint only for them).
-        let error_estimate = settings.error_estimate && sweep.chains.is_none();
+        let error_estimate = settings.error_estimate && sweep.model.takes_error_estimate();
         Ok(SweepRequest {
             sweep,
             out,

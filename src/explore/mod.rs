@@ -42,17 +42,12 @@ use axum::routing::get;
 use axum::{Json, Router};
 use serde_json::{json, Value as Json_};
 
-use crate::engine::{simulate_chain, Model, Silent};
-use crate::output::trace::TraceWriter;
 use crate::output::units::unit;
 use crate::sweep::axis::{Value, Values};
 use crate::sweep::Sweep;
 
-/// Most trace rows a scene reply carries.
-pub const MAX_TRACE_ROWS: f64 = 2000.0;
-/// Most beads and (half the most) rows of a chain scene's histories.
-pub const HISTORY_BEADS: usize = 200;
-pub const HISTORY_ROWS: usize = 400;
+pub use crate::model::cradle::MAX_TRACE_ROWS;
+pub use crate::model::granular::{HISTORY_BEADS, HISTORY_ROWS};
 /// Scene runs at the same time.
 pub const MAX_RUNS: usize = 2;
 /// Longest a scene run may take (s).
@@ -492,106 +487,10 @@ async fn row(State(d): State<Arc<Data>>, Query(q): Query<HashMap<String, String>
     Json(json!({"id": id, "row": fields})).into_response()
 }
 
-/// Run chain scene `id` of a chain sweep again (the chain engine, the
-/// row's own step): its row's outcome columns and its bead histories for a
-/// space-time image (at most [`HISTORY_BEADS`] beads × 2·[`HISTORY_ROWS`]
-/// rows, as f32).
-fn run_chain_scene(sweep: &Sweep, id: u64, o: &crate::engine::Overrides) -> Result<Json_> {
-    use crate::engine::granular::history::History;
-    let Some(job) = sweep.chain_job(id, o)? else {
-        anyhow::bail!("scene {id} is not a valid chain (status invalid)");
-    };
-    let cols = sweep.chains.as_ref().context("a chain sweep")?;
-    // The row's run under the error control (docs/SPEC.md §9), then the run
-    // it reports once more with every step offered to the history (which
-    // keeps evenly spaced rows): the same plan, so the outcome is the row's.
-    let row = crate::backend::run_chain_controlled(&job)?;
-    let mut h = History::new(&job.beads, HISTORY_BEADS, HISTORY_ROWS);
-    let o = crate::backend::rerun_reported(&job, &row, &mut h, true);
-    let outcome: Vec<Json_> = cols
-        .header()
-        .into_iter()
-        .zip(cols.texts(&o))
-        .map(|(name, text)| json!([name, text]))
-        .collect();
-    // f32's shortest decimal (JSON numbers are f64: an f32 written as one
-    // would take 17 digits where 7 or fewer carry all it holds).
-    let f32s = |rows: &[Vec<f64>]| -> Vec<Vec<f64>> {
-        rows.iter()
-            .map(|r| {
-                r.iter()
-                    .map(|&x| (x as f32).to_string().parse().unwrap_or(f64::NAN))
-                    .collect()
-            })
-            .collect()
-    };
-    Ok(json!({
-        "id": id,
-        "outcome": outcome,
-        "beads": job.beads.n,
-        "histories": {
-            "beads": h.beads,
-            "t": h.t,
-            "v": f32s(&h.v),
-            "f": f32s(&h.f),
-        },
-    }))
-}
-
-/// Run scene `id` of the sweep: outcome, trace text, the other models (a
-/// chain sweep's scene: [`run_chain_scene`]).
+/// Run scene `id` of the sweep again for a closer look (its model's
+/// [`crate::model::Model::look`]).
 fn run_scene(sweep: &Sweep, id: u64, o: &crate::engine::Overrides) -> Result<Json_> {
-    if sweep.chains.is_some() {
-        return run_chain_scene(sweep, id, o);
-    }
-    let job = sweep.job(id, o)?;
-    let crate::backend::Job::Run { chain, solver } = job else {
-        anyhow::bail!("scene {id} is not a valid scene (status invalid)");
-    };
-    let t_end = simulate_chain(&chain, &solver, &mut Silent).t_end;
-    let default_every = crate::output::trace::default_every(&chain);
-    let every = default_every.max(t_end / MAX_TRACE_ROWS);
-    let mut bytes = Vec::new();
-    let mut tw = TraceWriter::new(&mut bytes, &chain, every)?;
-    let o = simulate_chain(&chain, &solver, &mut tw);
-    tw.finish()?;
-    let shape = crate::output::row::Shape {
-        width: chain.n_balls,
-        pendulum: chain.is_pendulum(),
-    };
-    let outcome_of = |o: &crate::engine::Outcome| -> Json_ {
-        let header = crate::output::row::header(&[], shape);
-        let fields = crate::output::row::fields(id, &[], o, shape);
-        header
-            .into_iter()
-            .zip(fields)
-            .skip(1)
-            .map(|(h, f)| json!([h, f]))
-            .collect::<Vec<_>>()
-            .into()
-    };
-    let mut models = serde_json::Map::new();
-    for m in [Model::HardSphere, Model::Closure] {
-        let mut s = solver.clone();
-        s.model = m;
-        models.insert(
-            m.name().to_string(),
-            match m.unsupported(&chain) {
-                Some(why) => json!({"unsupported": why}),
-                None => outcome_of(&simulate_chain(&chain, &s, &mut Silent)),
-            },
-        );
-    }
-    Ok(json!({
-        "id": id,
-        "outcome": outcome_of(&o),
-        "trace_csv": String::from_utf8_lossy(&bytes),
-        "trace_every_s": every,
-        "trace_capped": every > default_every,
-        "pendulum": chain.is_pendulum(),
-        "length_m": chain.length,
-        "models": models,
-    }))
+    sweep.model.look(id, sweep.scene(id), o)
 }
 
 async fn scene(State(d): State<Arc<Data>>, Query(q): Query<HashMap<String, String>>) -> Response {

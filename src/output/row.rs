@@ -346,10 +346,15 @@ pub fn emit_fields(
     shape: Shape,
     out: &mut dyn FnMut(Field),
 ) {
-    let garbage = o.status == Status::NonFinite;
-    let state = |x: f64| if garbage { Field::Null } else { Field::Num(x) };
     out(Field::Int(id));
     axes(out);
+    emit_outcome(o, shape, out);
+}
+
+/// The outcome's fields of a row (after its id and axes), in order.
+pub fn emit_outcome(o: &Outcome, shape: Shape, out: &mut dyn FnMut(Field)) {
+    let garbage = o.status == Status::NonFinite;
+    let state = |x: f64| if garbage { Field::Null } else { Field::Num(x) };
     out(Field::Text(o.status.name()));
     for i in 0..shape.width {
         out(o.v.get(i).map_or(Field::Null, |&v| state(v)));

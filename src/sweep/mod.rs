@@ -3,7 +3,6 @@
 //! produced one id at a time, never materialised as a whole.
 
 pub mod axis;
-pub mod chains;
 pub mod design;
 pub mod fill;
 pub mod merge;
@@ -24,22 +23,6 @@ use crate::error::{InputError, Source};
 use crate::output::row::{ColType, Field};
 use crate::scene::{Scene, SceneSpec};
 pub use axis::{Param, Value, Values};
-
-/// Why a value of an axis is refused when it makes a cradle out of a chain
-/// sweep's base scene, or a chain out of a cradle's (docs/SPEC.md §9): a
-/// table has either the cradle's columns or the chain's.
-pub fn mixed_sweep(base_is_chain: bool) -> String {
-    let (base, value) = if base_is_chain {
-        ("a granular chain", "a cradle")
-    } else {
-        ("a cradle", "a granular chain")
-    };
-    format!(
-        "a scene like the base scene: the base scene is {base} and this value makes {value} \
-         (a sweep's scenes are all cradles or all granular chains; a chain of at most 64 beads \
-         is one when it has [walls], [pulse], [probes], [record], [pattern], [taper] or [impurity])"
-    )
-}
 
 /// Most scenes one sweep may have (refused before anything is allocated).
 pub const MAX_SCENES: u64 = 1_000_000_000;
@@ -120,10 +103,10 @@ pub struct Sweep {
     /// A grid, a point list or a sampling design.
     #[serde(skip_serializing_if = "Layout::is_grid")]
     pub layout: Layout,
-    /// A sweep of granular chains (docs/SPEC.md §9): its bead columns;
-    /// `None` for cradles.
+    /// What its scenes are (a cradle, a granular chain): their columns and
+    /// how they run (`crate::model`, chosen from the base scene).
     #[serde(skip)]
-    pub chains: Option<crate::output::chain_row::Columns>,
+    pub model: std::sync::Arc<dyn crate::model::Model>,
 }
 
 impl Sweep {
@@ -141,30 +124,15 @@ impl Sweep {
     /// for [`crate::backend::Backend::prepare`].
     pub fn needs(&self, o: &Overrides) -> Result<crate::backend::Needs, InputError> {
         let solver = Solver::resolve(&self.base, o)?;
-        let varies = |names: &[&str]| {
-            self.axes
+        let varied = crate::model::Varied {
+            names: self.axes.iter().map(|a| a.param.name.as_str()).collect(),
+            balls: self
+                .axes
                 .iter()
-                .any(|a| names.contains(&a.param.name.as_str()))
+                .find(|a| a.param.name == "balls")
+                .and_then(Axis::count_span),
         };
-        let base_terms =
-            crate::engine::Chain::from_scene(&self.base).map_or(true, |c| c.needs_terms());
-        let terms_vary = varies(&["restitution", "air_drag", "length", "gravity"]);
-        let fewest_balls = self
-            .axes
-            .iter()
-            .find(|a| a.param.name == "balls")
-            .and_then(Axis::count_span)
-            .map_or(self.base.n, |span| span.0);
-        // Glue joins balls into bodies: any count down to two may occur.
-        let glued = self.base.glue.iter().any(|g| *g) || varies(&["glue"]);
-        Ok(crate::backend::Needs {
-            precision: solver.precision,
-            hertz: solver.model == crate::engine::Model::Hertz,
-            plain: !base_terms || terms_vary,
-            terms: base_terms || terms_vary,
-            bodies: (if glued { 2 } else { fewest_balls }, self.width),
-            chains: self.chains.is_some(),
-        })
+        Ok(self.model.needs(&self.base, &varied, &solver))
     }
 
     /// Number of values of each axis (the grid's shape).
@@ -201,17 +169,13 @@ impl Sweep {
         Solver::check_flags_against(&self.base, o, &scene_origin)
     }
 
-    /// The per-ball columns of this sweep's table: displacements when its
-    /// scenes hang on strings (`[pendulum]`, or a `length`/`gravity` axis).
-    pub fn shape(&self) -> crate::output::row::Shape {
-        crate::output::row::Shape {
-            width: self.width,
-            pendulum: self.base.pendulum.is_some()
-                || self
-                    .axes
-                    .iter()
-                    .any(|a| matches!(a.param.name.as_str(), "length" | "gravity")),
-        }
+    /// Whether this sweep's scenes hang on strings (`[pendulum]`, or a
+    /// `length`/`gravity` axis): a cradle table's displacement columns.
+    fn pendulum(base: &Scene, axes: &[Axis]) -> bool {
+        base.pendulum.is_some()
+            || axes
+                .iter()
+                .any(|a| matches!(a.param.name.as_str(), "length" | "gravity"))
     }
 
     /// Each axis with its index in scene `id` (row-major, first axis
@@ -304,15 +268,10 @@ impl Sweep {
 
     /// The type of every column, parallel to the header.
     pub fn column_types(&self) -> Vec<ColType> {
-        match &self.chains {
-            Some(c) => {
-                let mut t = vec![ColType::Int];
-                t.extend(self.axis_types());
-                t.extend(c.types());
-                t
-            }
-            None => crate::output::row::column_types(&self.axis_types(), self.shape()),
-        }
+        let mut t = vec![ColType::Int];
+        t.extend(self.axis_types());
+        t.extend(self.model.types());
+        t
     }
 
     pub fn axis_names(&self) -> Vec<String> {

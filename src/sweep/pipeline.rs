@@ -26,11 +26,11 @@ use std::time::{Duration, Instant};
 
 use anyhow::Result;
 
-use super::session::{Options, RowOutcome, SweepRow};
+use super::session::{Options, SweepRow};
 use super::Sweep;
-use crate::backend::{run_with_estimate, Backend, DeviceStats, Gate, Job};
-use crate::engine::granular::ChainOutcome;
+use crate::backend::{Backend, DeviceStats, Gate};
 use crate::engine::Status;
+use crate::model::Outcomes;
 use crate::output::parquet_file::{Columns, Segment, SEGMENT_ROWS};
 use crate::output::partial::{Partial, TableFormat};
 use crate::output::row::{self, Cell};
@@ -92,49 +92,6 @@ impl Stages {
     }
 }
 
-/// A batch's outcomes: cradles' or chains'.
-enum Outcomes {
-    Cradle(Vec<crate::engine::Outcome>),
-    Chain(Vec<ChainOutcome>),
-}
-
-impl Outcomes {
-    fn len(&self) -> usize {
-        match self {
-            Outcomes::Cradle(v) => v.len(),
-            Outcomes::Chain(v) => v.len(),
-        }
-    }
-
-    fn status(&self, k: usize) -> Status {
-        match self {
-            Outcomes::Cradle(v) => v[k].status,
-            Outcomes::Chain(v) => v[k].status,
-        }
-    }
-
-    /// Row `k` (scene `id`) of the batch, field by field: id, axes, outcome.
-    fn emit(&self, sweep: &Sweep, id: u64, k: usize, out: &mut dyn FnMut(row::Field)) {
-        let axes = |f: &mut dyn FnMut(row::Field)| sweep.emit_axis_values(id, f);
-        match (self, &sweep.chains) {
-            (Outcomes::Chain(v), Some(cols)) => {
-                out(row::Field::Int(id));
-                axes(out);
-                cols.emit(&v[k], out);
-            }
-            (Outcomes::Cradle(v), _) => row::emit_fields(id, axes, &v[k], sweep.shape(), out),
-            (Outcomes::Chain(_), None) => unreachable!("chain outcomes come from chain sweeps"),
-        }
-    }
-
-    fn into_rows(self) -> Vec<RowOutcome> {
-        match self {
-            Outcomes::Cradle(v) => v.into_iter().map(RowOutcome::Cradle).collect(),
-            Outcomes::Chain(v) => v.into_iter().map(RowOutcome::Chain).collect(),
-        }
-    }
-}
-
 /// Rows of a finished batch, as the output wants them.
 enum Rows {
     Csv(Vec<u8>),
@@ -193,29 +150,19 @@ fn batch(
     st: &mut Stages,
 ) -> Result<Done> {
     let (mut t, mut t1) = (Instant::now(), Instant::now());
-    let mut work = || -> Result<Outcomes> {
+    let mut work = || -> Result<Box<dyn Outcomes>> {
         t = Instant::now();
-        if sweep.chains.is_some() {
-            // Chains are built by the worker that runs them (memory: one
-            // chain per worker, not the batch's); building counts as
-            // integration.
-            t1 = t;
-            let job = |k: usize| sweep.chain_job(ids.at(first + k as u64), &opts.overrides);
-            return Ok(Outcomes::Chain(crate::backend::run_chains_controlled(
-                backend,
-                (end - first) as usize,
-                &job,
-            )?));
-        }
-        let jobs = (first..end)
-            .map(|p| sweep.job(ids.at(p), &opts.overrides))
-            .collect::<Result<Vec<Job>, _>>()?;
-        t1 = Instant::now();
-        Ok(Outcomes::Cradle(run_with_estimate(
+        t1 = t;
+        let scene = |k: usize| sweep.scene(ids.at(first + k as u64));
+        let n = (end - first) as usize;
+        sweep.model.run(
             backend,
-            &jobs,
+            n,
+            &scene,
+            &opts.overrides,
             opts.error_estimate,
-        )?))
+            &mut t1,
+        )
     };
     // A backend that takes few calls at once (a GPU): the lanes waiting for
     // it build their jobs only once let in, so no more than that many
@@ -228,8 +175,12 @@ fn batch(
     let t2 = Instant::now();
     let n = outcomes.len();
     let ok = (0..n).filter(|&k| outcomes.status(k) == Status::Ok).count() as u64;
+    // Row k: id, axes, outcome.
     let row = |k: usize, out: &mut dyn FnMut(row::Field)| {
-        outcomes.emit(sweep, ids.at(first + k as u64), k, out)
+        let id = ids.at(first + k as u64);
+        out(row::Field::Int(id));
+        sweep.emit_axis_values(id, out);
+        outcomes.emit(k, out)
     };
     let rows = match format {
         TableFormat::Csv => {
@@ -326,10 +277,7 @@ pub fn stream(
     hooks: &Hooks,
 ) -> Result<(u64, u64, Partial, Stages)> {
     let (progress, save) = (hooks.progress, hooks.save);
-    let mut batch_size = backend.batch_size().max(1);
-    if sweep.chains.is_some() {
-        batch_size = sweep.chain_batch(batch_size);
-    }
+    let mut batch_size = sweep.model.batch_size(backend.batch_size().max(1));
     if let TableFormat::Parquet(_) = out.format {
         // A power of two ≤ a segment: no batch straddles two segments.
         batch_size = (1u64 << batch_size.ilog2()).min(SEGMENT_ROWS);

@@ -210,7 +210,7 @@ fn check_row(
     // A row must make the same kind of scene as the base (an axis or a
     // sample value that turns a cradle into a chain is refused the same way).
     let e = match s.validate() {
-        Ok(scene) if scene.chain.is_some() == base.chain.is_some() => return Ok(()),
+        Ok(scene) if crate::model::kind(&scene) == crate::model::kind(base) => return Ok(()),
         Ok(_) => {
             let k = params
                 .iter()
@@ -219,7 +219,7 @@ fn check_row(
                     let mut one = spec.clone();
                     axis::apply(&mut one, base, p, v);
                     one.validate()
-                        .is_ok_and(|o| o.chain.is_some() != base.chain.is_some())
+                        .is_ok_and(|o| crate::model::kind(&o) != crate::model::kind(base))
                 })
                 .unwrap_or(0);
             return Err(invalid(
@@ -227,7 +227,7 @@ fn check_row(
                 line,
                 &header[k],
                 row[k].to_string(),
-                crate::sweep::mixed_sweep(base.chain.is_some()),
+                crate::model::mixed_sweep(base),
             ));
         }
         Err(e) => e,

@@ -12,12 +12,11 @@ use serde::{Deserialize, Serialize};
 
 use super::Sweep;
 use crate::backend::{Backend, Job};
-use crate::engine::granular::ChainOutcome;
-use crate::engine::{Chain, Outcome, Overrides, Solver};
+use crate::engine::{Overrides, Solver};
 use crate::error::InputError;
 use crate::output::lock::OutputLock;
 use crate::output::partial::{Opened, Partial, TableFormat};
-use crate::output::row::{self, Cell};
+use crate::output::row::Cell;
 use crate::output::sidecar;
 
 /// Where a running sweep stands: rows written so far and rows it will write
@@ -40,38 +39,7 @@ pub struct SweepRow {
     pub outcome: RowOutcome,
 }
 
-/// A row's outcome: a cradle's, or a granular chain's (docs/SPEC.md §9).
-#[derive(Clone, Debug)]
-#[allow(clippy::large_enum_variant)]
-pub enum RowOutcome {
-    Cradle(Outcome),
-    Chain(ChainOutcome),
-}
-
-impl RowOutcome {
-    /// The cradle's outcome (`None` for a chain).
-    pub fn cradle(&self) -> Option<&Outcome> {
-        match self {
-            RowOutcome::Cradle(o) => Some(o),
-            RowOutcome::Chain(_) => None,
-        }
-    }
-
-    /// The chain's outcome (`None` for a cradle).
-    pub fn chain(&self) -> Option<&ChainOutcome> {
-        match self {
-            RowOutcome::Chain(o) => Some(o),
-            RowOutcome::Cradle(_) => None,
-        }
-    }
-
-    pub fn status(&self) -> crate::engine::Status {
-        match self {
-            RowOutcome::Cradle(o) => o.status,
-            RowOutcome::Chain(o) => o.status,
-        }
-    }
-}
+pub use crate::model::RowOutcome;
 
 /// Called with every row once it is written, in the order the output holds
 /// them (id order; level by level for a refinement).
@@ -144,32 +112,27 @@ pub struct Summary {
 }
 
 impl Sweep {
-    /// The job for scene `id`: its chain and solver, or why it is invalid.
+    /// The job for scene `id` of a sweep of cradles: its chain and solver,
+    /// or `Invalid`.
     pub fn job(&self, id: u64, o: &Overrides) -> Result<Job, InputError> {
+        crate::model::cradle::job(self.scene(id), self.base.n, o)
+    }
+
+    /// The solver of scene `id` (`None`: its values make no valid scene),
+    /// or why the flags cannot run it.
+    pub fn solver_at(&self, id: u64, o: &Overrides) -> Result<Option<Solver>, InputError> {
         match self.scene(id) {
-            Ok(scene) => match Chain::from_scene(&scene) {
-                Ok(chain) => Ok(Job::Run {
-                    chain,
-                    solver: Solver::resolve(&scene, o)?,
-                }),
-                Err(e) => Err(e),
-            },
-            Err(_) => Ok(Job::Invalid {
-                n_balls: self.base.n,
-            }),
+            Ok(scene) => Solver::resolve(&scene, o).map(Some),
+            Err(_) => Ok(None),
         }
     }
 
+    /// The table's columns: `id`, the axes, the model's outcome.
     pub fn header(&self) -> Vec<String> {
-        match &self.chains {
-            Some(c) => {
-                let mut h = vec!["id".to_string()];
-                h.extend(self.axis_names());
-                h.extend(c.header());
-                h
-            }
-            None => row::header(&self.axis_names(), self.shape()),
-        }
+        let mut h = vec!["id".to_string()];
+        h.extend(self.axis_names());
+        h.extend(self.model.header());
+        h
     }
 
     /// The Arrow schema of this sweep's table (its Parquet output).
@@ -279,7 +242,7 @@ pub(super) fn open(sweep: &Sweep, opts: &Options, lo: u64, csv_partial: bool) ->
     let fingerprint =
         Fingerprint::of(sweep, opts.shard, &opts.overrides, opts.error_estimate)?.encode();
     // Fail on a bad solver choice (e.g. f32 below its floor) before any output.
-    sweep.job(lo.min(sweep.total.saturating_sub(1)), &opts.overrides)?;
+    sweep.solver_at(lo.min(sweep.total.saturating_sub(1)), &opts.overrides)?;
     let mut header = Vec::new();
     {
         let mut w = csv::Writer::from_writer(&mut header);
@@ -335,9 +298,9 @@ pub(super) fn finish(
         adapter: backend.adapter(),
         solver: serde_json::json!({
             "flags": sidecar::flags(&opts.overrides),
-            "base_scene": match sweep.job(lo.min(sweep.total.saturating_sub(1)), &opts.overrides)? {
-                Job::Run { solver, .. } => serde_json::to_value(solver)?,
-                Job::Invalid { .. } => serde_json::Value::Null,
+            "base_scene": match sweep.solver_at(lo.min(sweep.total.saturating_sub(1)), &opts.overrides)? {
+                Some(solver) => serde_json::to_value(solver)?,
+                None => serde_json::Value::Null,
             },
         }),
         ids: [lo, hi],

@@ -4,8 +4,7 @@
 use rayon::prelude::*;
 
 use super::Sweep;
-use crate::backend::Job;
-use crate::engine::{Overrides, Solver};
+use crate::engine::Overrides;
 use crate::error::{flag, InputError};
 
 /// Scenes sampled to estimate the cost profile of a sweep for sharding.
@@ -78,7 +77,7 @@ impl Sweep {
     /// balanced in expected cost (scene costs differ by orders of magnitude
     /// across a sweep). The cumulative cost is estimated from every scene, or
     /// from [`COST_SAMPLES`] evenly spaced ones (linear in between), with
-    /// [`Solver::expected_cost`]; every shard computes the same boundaries.
+    /// the model's cost (`crate::model::Model::cost`); every shard computes the same boundaries.
     pub fn shard_range(&self, shard: Option<(u64, u64)>, o: &Overrides) -> (u64, u64) {
         let total = self.total;
         let Some((k, n)) = shard else {
@@ -90,13 +89,7 @@ impl Sweep {
             .collect();
         let costs: Vec<f64> = ids
             .par_iter()
-            .map(|&id| match self.chains {
-                Some(_) => self.chain_cost(id, o),
-                None => match self.job(id, o) {
-                    Ok(Job::Run { chain, solver }) => Solver::expected_cost(&solver, &chain),
-                    _ => 1.0,
-                },
-            })
+            .map(|&id| self.model.cost(self.scene(id), o))
             .collect();
         // Sample j stands for ids [ids[j], ids[j+1]): cumulative cost at its start.
         let mut cum = Vec::with_capacity(ids.len() + 1);

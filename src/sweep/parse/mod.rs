@@ -277,12 +277,12 @@ impl Ctx<'_> {
                 let mut spec = scene_spec.clone();
                 axis::apply(&mut spec, base, &a.param, v);
                 if let Ok(s) = spec.validate() {
-                    if s.chain.is_some() != base.chain.is_some() {
+                    if crate::model::kind(&s) != crate::model::kind(base) {
                         return Err(cx.invalid(
                             *line,
                             &a.name,
                             v.to_string(),
-                            crate::sweep::mixed_sweep(base.chain.is_some()),
+                            crate::model::mixed_sweep(base),
                         ));
                     }
                 }
@@ -416,24 +416,21 @@ impl Sweep {
         if !matches!(layout, Layout::Points { .. }) {
             cx.check_values(&axes, &scene_spec, &base, width)?;
         }
+        let axes: Vec<Axis> = axes.into_iter().map(|(_, a)| a).collect();
+        let model = crate::model::of(&base, width, Sweep::pendulum(&base, &axes));
         let mut sweep = Sweep {
             origin: cx.origin.clone(),
             inputs,
             description: raw.description,
             scene: scene_spec,
             base,
-            axes: axes.into_iter().map(|(_, a)| a).collect(),
+            axes,
             total,
             width,
             refine: None,
             layout,
-            chains: None,
+            model,
         };
-        sweep.chains = sweep
-            .base
-            .chain
-            .as_ref()
-            .map(|c| crate::output::chain_row::Columns::for_chains(c.probes.clone(), width));
         if let Some(r) = raw.refine {
             let line = Some(src.line(r.span().start));
             if sweep.layout != Layout::Grid {
