@@ -1,5 +1,5 @@
 #!/bin/bash
-# The kernel with a workgroup per scene (shaders/wide.wgsl)
+# The kernel with a workgroup per scene (shaders/cradle/wide.wgsl)
 # against the CPU backend and the serial kernel, byte for byte:
 #   1. grid100 (5 balls) in f64, f32 and df64 with every chain wide
 #      (CRADLE_GPU_PROFILE=software,wide_above=1) against the serial kernel;

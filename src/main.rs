@@ -86,64 +86,7 @@ fn is_broken_pipe(e: &anyhow::Error) -> bool {
 
 fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
-        Command::Sweep(args) => {
-            // Every check (flags, the sweep file, the output path, flags
-            // against the file) before any work or any GPU start-up.
-            let req = args.request()?;
-            let bar = hertz_cradle::progress::Bar::stderr(true);
-            let cancel = stop_on_signal();
-            let total = std::sync::Arc::new(std::sync::atomic::AtomicU64::new(0));
-            let on_progress = {
-                let (shown, total) = (bar.callback(), total.clone());
-                std::sync::Arc::new(move |p: hertz_cradle::sweep::session::Progress| {
-                    total.store(p.total, std::sync::atomic::Ordering::SeqCst);
-                    shown(p)
-                })
-            };
-            let run = req.run(Hooks {
-                command: std::env::args().collect(),
-                on_progress: Some(on_progress),
-                cancel: Some(cancel),
-                ..Hooks::default()
-            });
-            drop(bar);
-            let out = req.out_given.display();
-            let s = match run {
-                Err(hertz_cradle::request::Error::Interrupted) => {
-                    let kept = hertz_cradle::output::partial::resumable_rows(&req.out);
-                    let total = total.load(std::sync::atomic::Ordering::SeqCst);
-                    eprintln!(
-                        "cradle: interrupted: {} of {total} scenes are kept in {out}.partial; run the same command with --resume to continue (without --resume a rerun starts over)",
-                        kept.unwrap_or(0)
-                    );
-                    return Err(hertz_cradle::error::Interrupted.into());
-                }
-                r => r.map_err(|e| e.into_anyhow())?,
-            };
-            if let Some((rows, dropped)) = s.resumed {
-                let tail = match dropped {
-                    0 => String::new(),
-                    b => format!(
-                        "; dropped the {b} bytes after them (an incomplete or torn last row, or a crash's zero-filled block)"
-                    ),
-                };
-                eprintln!("cradle: resumed {out} after {rows} whole rows{tail}");
-            }
-            if s.already_complete {
-                eprintln!("cradle: {out} is already complete; nothing to resume");
-            } else {
-                eprintln!(
-                    "cradle: {} scenes ({} ok, {} not ok) in {:.2} s, {}, backend {} -> {out}",
-                    s.scenes,
-                    s.ok,
-                    s.scenes - s.ok,
-                    s.wall_s,
-                    hertz_cradle::progress::rate(s.scenes as f64 / s.wall_s.max(1e-9)),
-                    s.backend,
-                );
-            }
-            Ok(())
-        }
+        Command::Sweep(args) => sweep(args),
         Command::Merge { inputs, out } => {
             let target = guard::output(
                 "--out",
@@ -179,36 +122,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 }
             })
         }
-        Command::Fill { table, out } => {
-            let target = guard::output(
-                "--out",
-                &out,
-                std::slice::from_ref(&table),
-                hertz_cradle::output::publish::ALONE_COMPANIONS,
-            )?;
-            if !table.exists() {
-                return Err(hertz_cradle::InputError::Read {
-                    path: table,
-                    error: std::io::Error::new(std::io::ErrorKind::NotFound, "no such file"),
-                }
-                .into());
-            }
-            let Some(g) = hertz_cradle::sweep::fill::grid(&table)? else {
-                return Err(hertz_cradle::InputError::Data {
-                    path: table,
-                    what: "not a refined sweep's table (its sidecar has no `refine`)".into(),
-                }
-                .into());
-            };
-            let n = hertz_cradle::output::publish::write_alone(&target, |w| {
-                hertz_cradle::sweep::fill::fill(&table, &g, &mut |row| {
-                    w.write_all(row)
-                        .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", target.display()))
-                })
-            })?;
-            eprintln!("cradle: {n} rows -> {}", target.display());
-            Ok(())
-        }
+        Command::Fill { table, out } => fill(table, out),
         Command::Plot {
             table,
             trace,
@@ -275,45 +189,147 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             trace,
             trace_dt,
             solver,
-        } => {
-            let cfg = RunRequest::from_name(&scene, &run_settings(trace, trace_dt, &solver))
-                .map_err(|e| e.into_anyhow())?;
-            if let Some((path, _)) = &cfg.trace {
-                forget_trace_on_signal(path);
-            }
-            if let Some(beads) = &cfg.beads {
-                let o = cfg.run_chain().map_err(|e| e.into_anyhow())?;
-                return print_chain(&cfg.name, beads, &o, format);
-            }
-            let outcome = cfg.run().map_err(|e| e.into_anyhow())?;
-            let chain = &cfg.chain;
-            let mut out = std::io::stdout().lock();
-            match format {
-                Format::Table => write!(
-                    out,
-                    "{}",
-                    row::table(
-                        &cfg.name,
-                        chain.v_in(),
-                        &cfg.scene.velocity,
-                        &outcome,
-                        chain.is_pendulum()
-                    )
-                )?,
-                Format::Csv => {
-                    let mut w = csv::Writer::from_writer(&mut out);
-                    let shape = row::Shape {
-                        width: cfg.scene.n,
-                        pendulum: chain.is_pendulum(),
-                    };
-                    w.write_record(row::header(&[], shape))?;
-                    w.write_record(row::fields(0, &[], &outcome, shape))?;
-                    w.flush()?;
-                }
-            }
-            Ok(())
+        } => run_scene(scene, format, trace, trace_dt, solver),
+    }
+}
+
+/// `cradle sweep`: the run with a progress bar, interrupts kept for
+/// `--resume`, and its summary on stderr.
+fn sweep(args: hertz_cradle::cli::SweepArgs) -> anyhow::Result<()> {
+    // Every check (flags, the sweep file, the output path, flags
+    // against the file) before any work or any GPU start-up.
+    let req = args.request()?;
+    let bar = hertz_cradle::progress::Bar::stderr(true);
+    let cancel = stop_on_signal();
+    let total = std::sync::Arc::new(std::sync::atomic::AtomicU64::new(0));
+    let on_progress = {
+        let (shown, total) = (bar.callback(), total.clone());
+        std::sync::Arc::new(move |p: hertz_cradle::sweep::session::Progress| {
+            total.store(p.total, std::sync::atomic::Ordering::SeqCst);
+            shown(p)
+        })
+    };
+    let run = req.run(Hooks {
+        command: std::env::args().collect(),
+        on_progress: Some(on_progress),
+        cancel: Some(cancel),
+        ..Hooks::default()
+    });
+    drop(bar);
+    let out = req.out_given.display();
+    let s = match run {
+        Err(hertz_cradle::request::Error::Interrupted) => {
+            let kept = hertz_cradle::output::partial::resumable_rows(&req.out);
+            let total = total.load(std::sync::atomic::Ordering::SeqCst);
+            eprintln!(
+                "cradle: interrupted: {} of {total} scenes are kept in {out}.partial; run the same command with --resume to continue (without --resume a rerun starts over)",
+                kept.unwrap_or(0)
+            );
+            return Err(hertz_cradle::error::Interrupted.into());
+        }
+        r => r.map_err(|e| e.into_anyhow())?,
+    };
+    if let Some((rows, dropped)) = s.resumed {
+        let tail = match dropped {
+            0 => String::new(),
+            b => format!(
+                "; dropped the {b} bytes after them (an incomplete or torn last row, or a crash's zero-filled block)"
+            ),
+        };
+        eprintln!("cradle: resumed {out} after {rows} whole rows{tail}");
+    }
+    if s.already_complete {
+        eprintln!("cradle: {out} is already complete; nothing to resume");
+    } else {
+        eprintln!(
+            "cradle: {} scenes ({} ok, {} not ok) in {:.2} s, {}, backend {} -> {out}",
+            s.scenes,
+            s.ok,
+            s.scenes - s.ok,
+            s.wall_s,
+            hertz_cradle::progress::rate(s.scenes as f64 / s.wall_s.max(1e-9)),
+            s.backend,
+        );
+    }
+    Ok(())
+}
+
+/// `cradle fill`: a refined sweep's table as the full grid.
+fn fill(table: std::path::PathBuf, out: std::path::PathBuf) -> anyhow::Result<()> {
+    let target = guard::output(
+        "--out",
+        &out,
+        std::slice::from_ref(&table),
+        hertz_cradle::output::publish::ALONE_COMPANIONS,
+    )?;
+    if !table.exists() {
+        return Err(hertz_cradle::InputError::Read {
+            path: table,
+            error: std::io::Error::new(std::io::ErrorKind::NotFound, "no such file"),
+        }
+        .into());
+    }
+    let Some(g) = hertz_cradle::sweep::fill::grid(&table)? else {
+        return Err(hertz_cradle::InputError::Data {
+            path: table,
+            what: "not a refined sweep's table (its sidecar has no `refine`)".into(),
+        }
+        .into());
+    };
+    let n = hertz_cradle::output::publish::write_alone(&target, |w| {
+        hertz_cradle::sweep::fill::fill(&table, &g, &mut |row| {
+            w.write_all(row)
+                .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", target.display()))
+        })
+    })?;
+    eprintln!("cradle: {n} rows -> {}", target.display());
+    Ok(())
+}
+
+/// `cradle run`: one scene's outcome as a table or a CSV row.
+fn run_scene(
+    scene: String,
+    format: Format,
+    trace: Option<std::path::PathBuf>,
+    trace_dt: Option<f64>,
+    solver: hertz_cradle::cli::SolverFlags,
+) -> anyhow::Result<()> {
+    let cfg = RunRequest::from_name(&scene, &run_settings(trace, trace_dt, &solver))
+        .map_err(|e| e.into_anyhow())?;
+    if let Some((path, _)) = &cfg.trace {
+        forget_trace_on_signal(path);
+    }
+    if let Some(beads) = &cfg.beads {
+        let o = cfg.run_chain().map_err(|e| e.into_anyhow())?;
+        return print_chain(&cfg.name, beads, &o, format);
+    }
+    let outcome = cfg.run().map_err(|e| e.into_anyhow())?;
+    let chain = &cfg.chain;
+    let mut out = std::io::stdout().lock();
+    match format {
+        Format::Table => write!(
+            out,
+            "{}",
+            row::table(
+                &cfg.name,
+                chain.v_in(),
+                &cfg.scene.velocity,
+                &outcome,
+                chain.is_pendulum()
+            )
+        )?,
+        Format::Csv => {
+            let mut w = csv::Writer::from_writer(&mut out);
+            let shape = row::Shape {
+                width: cfg.scene.n,
+                pendulum: chain.is_pendulum(),
+            };
+            w.write_record(row::header(&[], shape))?;
+            w.write_record(row::fields(0, &[], &outcome, shape))?;
+            w.flush()?;
         }
     }
+    Ok(())
 }
 
 /// `cradle run` of a granular chain: its table, or its row as CSV.

@@ -150,6 +150,8 @@ fn absolute(p: &Path) -> Result<PathBuf> {
 }
 
 /// The three scripts' texts: (array.sbatch, merge.sbatch, submit.sh).
+/// Long (~120 lines) on purpose: mostly the scripts' own text, read as
+/// templates.
 pub fn scripts(p: &Plan) -> Result<(String, String, String)> {
     let (dir, sweep, out, cradle) = (
         absolute(&p.dir)?,

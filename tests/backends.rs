@@ -732,6 +732,57 @@ fn shader_cites_only_rust_items_that_exist() {
     assert!(cited > 10, "{cited} citations found");
 }
 
+/// Twins are found by their path: each folder of `shaders/` is a model's
+/// (`src/model/<m>.rs`) and mirrors its engine (`src/engine/<m>/`), and
+/// each of its WGSL files cites that engine and no other model's.
+#[test]
+fn shader_folders_mirror_the_models_engines() {
+    let models: Vec<String> = std::fs::read_dir("src/model")
+        .unwrap()
+        .filter_map(|e| {
+            let p = e.unwrap().path();
+            let stem = p.file_stem()?.to_str()?.to_string();
+            (stem != "mod").then_some(stem)
+        })
+        .collect();
+    let mut folders = 0;
+    for e in std::fs::read_dir("shaders").unwrap() {
+        let dir = e.unwrap().path();
+        assert!(
+            dir.is_dir(),
+            "{}: WGSL lives in a model's folder",
+            dir.display()
+        );
+        let m = dir.file_name().unwrap().to_str().unwrap().to_string();
+        assert!(
+            models.contains(&m),
+            "shaders/{m}/ names no model in src/model/"
+        );
+        assert!(
+            std::path::Path::new(&format!("src/engine/{m}/mod.rs")).exists(),
+            "shaders/{m}/ has no engine twin src/engine/{m}/"
+        );
+        for f in std::fs::read_dir(&dir).unwrap() {
+            let f = f.unwrap().path();
+            let text = std::fs::read_to_string(&f).unwrap();
+            assert!(
+                text.contains(&format!("engine::{m}")),
+                "{} cites nothing of engine::{m}",
+                f.display()
+            );
+            for other in models.iter().filter(|o| **o != m) {
+                assert!(
+                    !text.contains(&format!("engine::{other}")),
+                    "{} cites another model's engine ({other})",
+                    f.display()
+                );
+            }
+        }
+        folders += 1;
+    }
+    assert_eq!(folders, models.len(), "a shader folder for every model");
+}
+
 /// Pipelines are specialised by chain size (private arrays of 8, 16, 32 or
 /// 64 bodies): chains at both edges of every class, in one mixed batch, give
 /// the CPU's outcomes — bit for bit in f64 (on lavapipe), with the same steps.
@@ -1017,7 +1068,7 @@ fn gpu_profiles_parse_with_clear_errors() {
 }
 
 /// Granular chains (docs/SPEC.md §9) through the chain kernel (a workgroup
-/// per chain, shaders/chains.wgsl) give the CPU's outcomes bit for bit on
+/// per chain, shaders/granular/chains.wgsl) give the CPU's outcomes bit for bit on
 /// lavapipe: free ends and walls, precompression, a force pulse (its sine
 /// and its push on the bead), a dimer pattern, a taper, an impurity, a
 /// stop time and the default end at the far peak, the local refinement

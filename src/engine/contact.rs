@@ -1,5 +1,5 @@
 //! The contact law — the one place on the Rust side that says how two balls
-//! push on each other. Its WGSL twin is `hertz_force` in `shaders/kernels.wgsl`.
+//! push on each other. Its WGSL twin is `hertz_force` in `shaders/cradle/kernels.wgsl`.
 //!
 //! Hertz (docs/SPEC.md §2): overlap δ = x_i − x_{i+1} − g_i; force F = k·δ^{3/2} for δ > 0,
 //! zero otherwise (no tension), with k = (4/3)·E*·√R*.

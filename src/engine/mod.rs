@@ -1,19 +1,20 @@
-//! The physics engine on the CPU: contact law, chain of rigid bodies,
-//! integrator, outcomes. The GPU backend runs the WGSL twin of `integrate`.
+//! The physics engines on the CPU, one folder per model (`crate::model`):
+//! `cradle` (the cradle's integrator) and `granular` (long chains), and what
+//! they share: contact law, chain of rigid bodies, outcomes, precisions. The
+//! GPU backend runs their WGSL twins, `shaders/cradle/` and
+//! `shaders/granular/`.
 
 pub mod chain;
 pub mod contact;
+pub mod cradle;
 pub mod granular;
-pub mod integrate;
 pub mod models;
 pub mod outcome;
 pub mod real;
 pub mod solver;
 
 pub use chain::Chain;
-pub use integrate::{
-    integrate, integrate_batch, End, Limits, Observer, Run, Silent, StepPlan, Task,
-};
+pub use cradle::{integrate, integrate_batch, End, Limits, Observer, Run, Silent, StepPlan, Task};
 pub use models::Model;
 pub use outcome::{Outcome, Status, MAX_OVERLAP_RATIO};
 pub use solver::{Overrides, Solver, StepRule};

@@ -12,7 +12,7 @@
 
 use serde::Serialize;
 
-use super::integrate::{End, Run};
+use super::cradle::{End, Run};
 use super::Chain;
 
 /// Which physics answers a scene.

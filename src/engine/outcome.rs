@@ -5,7 +5,7 @@ use std::fmt;
 
 use serde::Serialize;
 
-use super::integrate::{End, Run};
+use super::cradle::{End, Run};
 use super::Chain;
 
 /// Relative slack of the ordering test of [`ejected`] (the default tolerance).

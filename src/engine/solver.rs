@@ -3,7 +3,7 @@
 
 use serde::Serialize;
 
-use super::integrate::StepPlan;
+use super::cradle::StepPlan;
 use super::{Chain, Model};
 use crate::error::InputError;
 use crate::scene::{Method, Precision, Scene};

@@ -165,38 +165,7 @@ fn load(path: &Path) -> Result<Data> {
         axes.clear();
     }
     // The sweep file, as named in the sidecar (from where it ran, or beside the table).
-    let (sweep, sweep_problem) = match sc.as_ref().map(|s| s.sweep_file.as_str()) {
-        None => (
-            None,
-            "the table has no sidecar naming its sweep file".to_string(),
-        ),
-        Some(f) => {
-            // As named (from where the sweep ran), then from the table's
-            // folder, then its file name beside the table (`cradle sweep
-            // run/s.toml --out run/t.csv`, explored from inside run/).
-            let dir = path.parent().unwrap_or(Path::new("."));
-            let beside = Path::new(f).file_name().map(|n| dir.join(n));
-            let found = [Some(PathBuf::from(f)), Some(dir.join(f)), beside]
-                .into_iter()
-                .flatten()
-                .find(|p| p.is_file());
-            let recorded = sc.as_ref().map(|s| &s.sweep);
-            match found.map(|p| Sweep::load(&p)) {
-                // The file must still resolve to the sweep the sidecar
-                // recorded (an edited sweep or scene file would run other
-                // scenes under this table's rows).
-                Some(Ok(s)) if serde_json::to_value(&s).ok().as_ref() == recorded => {
-                    (Some(s), String::new())
-                }
-                Some(Ok(_)) => (None, format!("the sweep file {f} (or a scene file it names) changed since this table was made: it no longer resolves to the sweep in the table's sidecar, so its scenes would not be this table's rows; restore it, or run the sweep again")),
-                Some(Err(e)) => (None, format!("the sweep file {f}: {e}")),
-                None => (
-                    None,
-                    format!("the sweep file {f} named in the sidecar is not found (as named, from the table's folder, or beside the table): run explore from where the sweep ran"),
-                ),
-            }
-        }
-    };
+    let (sweep, sweep_problem) = sweep_of(path, sc.as_ref());
     let row_of: HashMap<u64, usize> = match header.iter().position(|h| h == "id") {
         Some(k) => {
             let mut m = HashMap::with_capacity(rows);
@@ -232,6 +201,44 @@ fn load(path: &Path) -> Result<Data> {
         sweep_problem,
         runs: Arc::new(tokio::sync::Semaphore::new(MAX_RUNS)),
     })
+}
+
+/// The sweep a table's sidecar names, found as named (from where the sweep
+/// ran), from the table's folder, or by its file name beside the table, and
+/// still resolving to the sweep the sidecar recorded; else why not.
+fn sweep_of(path: &Path, sc: Option<&crate::output::sidecar::Sidecar>) -> (Option<Sweep>, String) {
+    match sc.map(|s| s.sweep_file.as_str()) {
+        None => (
+            None,
+            "the table has no sidecar naming its sweep file".to_string(),
+        ),
+        Some(f) => {
+            // As named (from where the sweep ran), then from the table's
+            // folder, then its file name beside the table (`cradle sweep
+            // run/s.toml --out run/t.csv`, explored from inside run/).
+            let dir = path.parent().unwrap_or(Path::new("."));
+            let beside = Path::new(f).file_name().map(|n| dir.join(n));
+            let found = [Some(PathBuf::from(f)), Some(dir.join(f)), beside]
+                .into_iter()
+                .flatten()
+                .find(|p| p.is_file());
+            let recorded = sc.map(|s| &s.sweep);
+            match found.map(|p| Sweep::load(&p)) {
+            // The file must still resolve to the sweep the sidecar
+            // recorded (an edited sweep or scene file would run other
+            // scenes under this table's rows).
+            Some(Ok(s)) if serde_json::to_value(&s).ok().as_ref() == recorded => {
+                (Some(s), String::new())
+            }
+            Some(Ok(_)) => (None, format!("the sweep file {f} (or a scene file it names) changed since this table was made: it no longer resolves to the sweep in the table's sidecar, so its scenes would not be this table's rows; restore it, or run the sweep again")),
+            Some(Err(e)) => (None, format!("the sweep file {f}: {e}")),
+            None => (
+                None,
+                format!("the sweep file {f} named in the sidecar is not found (as named, from the table's folder, or beside the table): run explore from where the sweep ran"),
+            ),
+        }
+        }
+    }
 }
 
 /// Each row's id (a whole number) from the `id` column, `None` where it is not one.

@@ -1,5 +1,5 @@
 //! The cradle model: a few balls on a line or on strings, contact times
-//! resolved exactly (`engine::integrate`; its WGSL twin in
+//! resolved exactly (`engine::cradle`; its WGSL twin in
 //! `shaders/cradle/`).
 
 use std::time::Instant;

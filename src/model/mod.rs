@@ -7,7 +7,7 @@
 //! resume, refinement), the output, the sidecar, the typed API, Python and
 //! the explorer are written once against it. Two models are registered:
 //! the cradle ([`cradle::Cradle`]: a few balls, exact contact times,
-//! `engine::integrate`) and the granular chain ([`granular::Granular`]:
+//! `engine::cradle`) and the granular chain ([`granular::Granular`]:
 //! long chains of beads, error-controlled steps, `engine::granular`;
 //! docs/SPEC.md §9).
 //!

@@ -406,6 +406,8 @@ pub fn logspace_at(start: f64, stop: f64, num: usize, i: usize) -> f64 {
 /// Apply `param = value` to a scene as written. `base` is the validated base
 /// scene, used to turn `density` into masses or `[launch]` into velocities
 /// before one element is changed.
+/// Long (~125 lines) on purpose: one arm per sweepable key, a table a
+/// reader scans for the key they sweep.
 pub fn apply(spec: &mut SceneSpec, base: &Scene, p: &Param, value: &Value) {
     let n = spec.balls.map_or(base.n, |b| b.max(0) as usize);
     let num = match value {

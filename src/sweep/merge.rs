@@ -81,6 +81,9 @@ fn read_part(p: &Path) -> Result<Part> {
 }
 
 /// Merge `inputs` into `out`; returns the number of rows.
+/// Long (~130 lines) on purpose: one pass of checks (every part's seal,
+/// fingerprint and id range, named in its error) and then one copy, in the
+/// order a reader follows a merge.
 pub fn merge(inputs: &[PathBuf], out: &Path) -> Result<u64> {
     let Some(first) = inputs.first() else {
         return Err(InputError::Flag {

@@ -13,11 +13,11 @@
 //! | `pack.rs` | one scene's header, params and state, by name through `layout` |
 //! | `device.rs` | one batch on the device: buffers, rounds in flight, read-back |
 //! | `probe.rs` | the df64 arithmetic probe (tests) |
-//! | `chains.rs` | granular chains: a workgroup per chain (`shaders/chains.wgsl`) |
+//! | `chains.rs` | granular chains: a workgroup per chain (`shaders/granular/chains.wgsl`) |
 
 mod adapter;
-mod chains;
 mod device;
+mod granular;
 mod pack;
 mod probe;
 mod profile;
@@ -31,13 +31,13 @@ use bytemuck::Pod;
 
 use super::layout::{self, PARAMS, STATE};
 use super::{Backend, ChainSource, DeviceStats, Job, Needs};
-use crate::engine::integrate::Run;
+use crate::engine::cradle::Run;
 use crate::engine::real::{Df64, Real};
 use crate::engine::{plan, simulate_chain, Chain, Outcome, Silent, Solver, UNSTEPPED};
 use crate::scene::Precision;
 pub use adapter::{find_adapter, quiet_mesa_without_session, Want};
-pub use chains::chain_shader;
 use device::WORKGROUP;
+pub use granular::chain_shader;
 pub use probe::DF64_PROBE_OPS;
 use profile::Tracker;
 pub use profile::{dispatch_budget, Profile};
@@ -103,7 +103,7 @@ pub struct Gpu {
     profile: Profile,
     stats: Tracker,
     /// The chain pipeline of each precision (f64, df64), built on first use.
-    chain_pipe: Mutex<[Option<Arc<chains::ChainPipe>>; 2]>,
+    chain_pipe: Mutex<[Option<Arc<granular::ChainPipe>>; 2]>,
     /// Batches on the device now: at most `profile.calls` (more calls than
     /// that are admitted, `host_ahead` of them planning, packing or unpacking).
     on_device: crate::backend::Gate,

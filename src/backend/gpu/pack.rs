@@ -8,7 +8,7 @@
 
 use crate::backend::layout::{self, Field, GpuHeader, PARAMS, STATE, WORDS};
 use crate::backend::layout::{FLAG_DAMPED, FLAG_DRAG, FLAG_EXACT, FLAG_PENDULUM};
-use crate::engine::integrate::{closing_speed_floor, kick_weights, Run};
+use crate::engine::cradle::{closing_speed_floor, kick_weights, Run};
 use crate::engine::real::Real;
 use crate::engine::{Chain, Limits, StepPlan};
 

@@ -15,13 +15,13 @@ use crate::scene::Precision;
 /// The shader's body (what both kernels share, then the kernel with an
 /// invocation per scene); its prelude comes from `layout::prelude`.
 pub const SHADER_BODY: &str = concat!(
-    include_str!("../../../shaders/kernels.wgsl"),
-    include_str!("../../../shaders/lanes.wgsl")
+    include_str!("../../../shaders/cradle/kernels.wgsl"),
+    include_str!("../../../shaders/cradle/lanes.wgsl")
 );
 /// The body of the kernel with a workgroup per scene (an invocation per body).
 pub const WIDE_BODY: &str = concat!(
-    include_str!("../../../shaders/kernels.wgsl"),
-    include_str!("../../../shaders/wide.wgsl")
+    include_str!("../../../shaders/cradle/kernels.wgsl"),
+    include_str!("../../../shaders/cradle/wide.wgsl")
 );
 
 /// The whole shader for one precision and chains of up to `max_bodies`

@@ -2,7 +2,7 @@
 //! optional walls, at rest or under a static precompression, struck by a
 //! striker or driven by a force pulse.
 //!
-//! The cradle engine (`engine::integrate`) steps every contact onset
+//! The cradle engine (`engine::cradle`) steps every contact onset
 //! exactly; in a long chain contacts open and close somewhere every few
 //! steps, so this one takes **fixed steps** of a symmetric composition of
 //! Verlet substeps ([`super::solver::weights`]), chosen from the tolerance
@@ -503,7 +503,7 @@ pub fn plan(beads: &Beads, solver: &Solver, every: Option<f64>) -> Plan {
             .min(TIME_CAP_TRANSITS * beads.length() / beads.wave_speed(0.01 * beads.v_scale()))
     });
     let kicks = (solver.method.order() > 2)
-        .then(|| crate::engine::integrate::kick_weights(weights(solver.method)));
+        .then(|| crate::engine::cradle::kick_weights(weights(solver.method)));
     let p = Plan {
         h,
         method: solver.method,

@@ -252,6 +252,8 @@ pub fn fwhm(v: &[f64]) -> f64 {
 /// The outcome of a run that ended at `t` in `st` with `status`, from its
 /// observers, the energy it is measured against and the largest overlap
 /// ratio seen (the last window's is taken here).
+/// Long (~130 lines) on purpose: one outcome field after another, each
+/// from its observer; the GPU's read-back finishes a chain through it.
 #[allow(clippy::too_many_arguments)]
 pub fn finish<R: Real>(
     b: &Beads,

@@ -344,7 +344,7 @@ unsafe fn step_avx2<R: Real>(
 }
 
 /// A step's substeps: the composition's drift weights, and the kick
-/// weights at the drift positions ([`crate::engine::integrate::kick_weights`])
+/// weights at the drift positions ([`crate::engine::cradle::kick_weights`])
 /// when contacts that open or close in a step get the kink correction
 /// (`kinks`), and the local refinement around contacts near a crossing
 /// (`refine`, with `kinks` only).
@@ -398,7 +398,7 @@ pub struct Refine {
 /// crossed zero during the step (δ^{3/2}⁺ has a kink there that the
 /// composition's quadrature misses, by ∝ h^{5/2}) gets the impulse the step
 /// missed along a straight δ from its start to its end
-/// ([`crate::engine::integrate::kink_impulse_error`], the cradle engine's
+/// ([`crate::engine::cradle::kink_impulse_error`], the cradle engine's
 /// correction), added to its two beads' velocities. Bead by bead (its left
 /// contact's share, then its right one's), as the GPU kernel's invocations
 /// do it, over beads a .. b, the overlaps at the start in `scratch.p`.
@@ -436,7 +436,7 @@ fn miss<R: Real>(
     let ps = s.scratch.p[j];
     crosses(c.d0[j], c.k[j], ps, s.p[j]).then(|| {
         let (d0, d1) = (c.d0[j] + ps, c.d0[j] + s.p[j]);
-        crate::engine::integrate::kink_impulse_error(c.k[j], d0, d1, w, kicks) * h
+        crate::engine::cradle::kink_impulse_error(c.k[j], d0, d1, w, kicks) * h
     })
 }
 
@@ -669,6 +669,10 @@ fn bead_rates<R: Real>(
 /// finer steps from the step's start ([`Refine`]), in place; then the
 /// beads just outside take the fine impulse of the boundary contacts and
 /// their accelerations from the new forces.
+/// Long (~130 lines) on purpose: the region's fine steps, the boundary
+/// impulses and the kink corrections share a dozen of the step's locals;
+/// it is the twin of the kernel's `redo` in `shaders/granular/chains.wgsl`,
+/// kept in the same order so the two stay bit for bit alike.
 fn redo<R: Real>(
     c: &Consts<R>,
     s: &mut State<R>,

@@ -142,6 +142,8 @@ impl Ctx<'_> {
     }
 
     /// The values of a grid axis: `values`, `linspace` or `logspace`.
+    /// Long (~120 lines) on purpose: each form's checks, with the file,
+    /// line, key and allowed range of its error, side by side.
     fn listed_values(
         &self,
         a: &RawAxis,

@@ -1,5 +1,6 @@
-//! The integrator — the one place on the Rust side that advances a chain in
-//! time. Its WGSL twins are in `shaders/` (same function names; see below).
+//! The cradle's integrator — the one place on the Rust side that advances a
+//! cradle in time. Its WGSL twins are in `shaders/cradle/` (same function
+//! names; see below).
 //!
 //! State, in contact coordinates: the overlap δ_c of every contact and the
 //! velocity v_b of every body. Forces depend only on δ, so nothing is ever

@@ -1,4 +1,4 @@
-// Twin of src/engine/integrate/kernels.rs (and of src/engine/contact.rs for the
+// Twin of src/engine/cradle/kernels.rs (and of src/engine/contact.rs for the
 // contact law), shared by both kernels: same state (contact overlaps δ,
 // body velocities, body 0's displacement), same function names, same order of
 // operations, so the GPU gives the CPU's answers. The contact law
@@ -16,7 +16,7 @@
 // sin or exp: pendulum_sin and decay are polynomials, the same on both sides.
 
 // false: a pipeline for elastic free lines only, without the pendulum, damping
-// and drag terms (engine::integrate's TERMS; set by the host per batch).
+// and drag terms (engine::cradle's TERMS; set by the host per batch).
 override TERMS: bool = true;
 
 @group(0) @binding(0) var<storage, read> headers: array<Header>;
@@ -38,7 +38,7 @@ var<private> ct: array<real, 1>;
 var<private> one: real;
 // its f32 word, for the error-free sums and products of df64 (layout::prelude)
 var<private> one_s: f32;
-// per-scene constants (engine::integrate::Shape, and the per-lane constants of engine::integrate::Lanes)
+// per-scene constants (engine::cradle::Shape, and the per-lane constants of engine::cradle::Lanes)
 var<private> nb: u32;
 var<private> nc: u32;
 var<private> pend: bool;
@@ -60,7 +60,7 @@ var<private> exact: bool;
 // offsets of the substep weights and kick weights in `params`
 var<private> w0: u32;
 var<private> k0: u32;
-// the run's bookkeeping (engine::integrate::Book)
+// the run's bookkeeping (engine::cradle::Book)
 var<private> t_first: real;
 var<private> t_release: real;
 var<private> max_ov: real;
@@ -87,7 +87,7 @@ fn contact_force(kc: real, dc: real, chic: real, r: real) -> real {
     return r_mul(hertz_force(kc, dc), r_max(r_add(real(1.0), r_mul(chic, r)), real(0.0)));
 }
 
-// engine::integrate::pendulum_sin — reduce to [−π/2, π/2], Taylor to θ^21.
+// engine::cradle::pendulum_sin — reduce to [−π/2, π/2], Taylor to θ^21.
 fn pendulum_sin(th: real) -> real {
     let tau = real(6.283185307179586);
     let pi = real(3.141592653589793);
@@ -106,7 +106,7 @@ fn pendulum_sin(th: real) -> real {
     return r_mul(x, p);
 }
 
-// engine::integrate::decay — e^{−y} for y ≥ 0.
+// engine::cradle::decay — e^{−y} for y ≥ 0.
 fn decay(y: real) -> real {
     var z = y;
     var kk = 0u;
@@ -136,7 +136,7 @@ fn add1(x: ptr<private, array<real, 1>>, cx: ptr<private, array<real, 1>>, inc: 
     }
 }
 
-// engine::integrate::kink_impulse_error — the exact integral of k·δ⁺^{3/2}
+// engine::cradle::kink_impulse_error — the exact integral of k·δ⁺^{3/2}
 // along a straight line from d0 to d1 minus the composition's quadrature of
 // it (weights at params[w0..], kicks at params[k0..]).
 fn kink_impulse_error(kc: real, d0: real, d1: real, w0: u32, k0: u32, n: u32) -> real {
@@ -178,7 +178,7 @@ fn fifth_root(x: real) -> real {
     return r_mul(w, s);
 }
 
-// The scene's constants and scalar state (the part of engine::integrate::Lanes::load
+// The scene's constants and scalar state (the part of engine::cradle::Lanes::load
 // that is not per body), from the buffers.
 fn load_scene(i: u32) {
     hd = headers[i];
@@ -204,7 +204,7 @@ fn load_scene(i: u32) {
     damped = TERMS && (hd.flags & FLAG_DAMPED) != 0u;
     dragged = TERMS && (hd.flags & FLAG_DRAG) != 0u;
     w0 = p0 + p_weights(nb, nw); // substep weights
-    k0 = p0 + p_kicks(nb, nw); // kick weights (engine::integrate::kick_weights)
+    k0 = p0 + p_kicks(nb, nw); // kick weights (engine::cradle::kick_weights)
     let o = hd.output;
     tt[0] = out_real[o + s_t(nb, nw)];
     t_first = out_real[o + s_t_first(nb, nw)];
@@ -219,7 +219,7 @@ fn load_scene(i: u32) {
 }
 
 // The scalar state and the words of scene i back to the buffers (the part of
-// engine::integrate::Lanes::finish that is not per body).
+// engine::cradle::Lanes::finish that is not per body).
 fn finish_scene(i: u32, end: u32) {
     let o = hd.output;
     let nw = hd.n_weights;
@@ -237,7 +237,7 @@ fn finish_scene(i: u32, end: u32) {
 }
 
 // A contact's kink: whether it restricts a step of at most s0, the cap it
-// sets and its time distance (the loop body of engine::integrate::graded_steps),
+// sets and its time distance (the loop body of engine::cradle::graded_steps),
 // from the pair's closing speed r, overlap dc and relative acceleration a.
 struct Reach {
     restricts: bool,
@@ -292,7 +292,7 @@ fn kink_reach(r: real, dc: real, a: real, s0: real) -> Reach {
 
 // The step a kink `near` away (capping at `cap`) allows: h·(near/tc)^(q/4)
 // within tc of it, at most s0, never below h_min (the end of
-// engine::integrate::graded_steps).
+// engine::cradle::graded_steps).
 fn graded_from(cap: real, near: real, s0: real, h: real, h_min: real, tc: real, quarters: u32) -> real {
     var graded = cap;
     if (r_lt(near, tc)) {
@@ -307,7 +307,7 @@ fn graded_from(cap: real, near: real, s0: real, h: real, h_min: real, tc: real, 
 }
 
 // s0, at most h_stiff/Λ^{1/4} (not below h_min) for the chain's bound Λ = lm
-// (the end of engine::integrate::stiffness_cap).
+// (the end of engine::cradle::stiffness_cap).
 fn stiffness_from(lm: real, s0: real, h_stiff: real, h_min: real) -> real {
     if (r_gt(lm, real(0.0)) && r_gt(h_stiff, real(0.0))) {
         let cap = r_max(r_div(h_stiff, r_sqrt(r_sqrt(lm))), h_min);
@@ -318,7 +318,7 @@ fn stiffness_from(lm: real, s0: real, h_stiff: real, h_min: real) -> real {
     return s0;
 }
 
-// The end checks of engine::integrate::Lanes::ready after any free flight:
+// The end checks of engine::cradle::Lanes::ready after any free flight:
 // a pendulum's duration, the step cap, the time cap; else END_RUNNING.
 fn end_check() -> u32 {
     if (pend && r_ge(tt[0], max_time)) {

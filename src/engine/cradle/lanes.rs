@@ -1,5 +1,5 @@
 //! Longer than 600 lines on purpose: every step kernel of the lane state is
-//! here, in the order `shaders/lanes.wgsl` has its twins, so that the two
+//! here, in the order `shaders/cradle/lanes.wgsl` has its twins, so that the two
 //! read side by side; `tests/backends.rs` checks the twins cite each other.
 //!
 //! `L` chains side by side (lane l of every array is one chain) and the step

@@ -1,4 +1,4 @@
-// Twin of src/engine/integrate/lanes.rs and driver.rs: the kernel with an
+// Twin of src/engine/cradle/lanes.rs and driver.rs: the kernel with an
 // invocation per scene, one lane (kernels.wgsl comes first).
 //
 // Invocations are workers (layout::GpuQueue): a worker takes the next scene of
@@ -29,7 +29,7 @@ var<private> imp_d: array<real, MAX_BALLS>;
 // stiffness-cap coefficients of each contact (engine::Chain::stiffness_coefficients)
 var<private> stiff_l: array<real, MAX_BALLS>;
 var<private> stiff_r: array<real, MAX_BALLS>;
-// engine::integrate::add — x[i] += inc, Kahan-compensated when COMPENSATED.
+// engine::cradle::add — x[i] += inc, Kahan-compensated when COMPENSATED.
 fn add(x: ptr<private, array<real, MAX_BALLS>>, cx: ptr<private, array<real, MAX_BALLS>>, i: u32, inc: real) {
     if (COMPENSATED) {
         let y = r_sub(inc, (*cx)[i]);
@@ -41,7 +41,7 @@ fn add(x: ptr<private, array<real, MAX_BALLS>>, cx: ptr<private, array<real, MAX
     }
 }
 
-// engine::integrate::kick — air drag, then contact forces and gravity; body b
+// engine::cradle::kick — air drag, then contact forces and gravity; body b
 // is pushed left by contact b, right by contact b−1.
 fn kick(hh: real) {
     if (dragged) {
@@ -58,7 +58,7 @@ fn kick(hh: real) {
     push(nb - 1u, r_mul(r_mul(hh, f[nb - 2u]), inv_m[nb - 1u]), hh);
 }
 
-// body b's share of a kick, gravity added after (the loop body of engine::integrate::Lanes::kick)
+// body b's share of a kick, gravity added after (the loop body of engine::cradle::Lanes::kick)
 fn push(b: u32, contact: real, hh: real) {
     var inc = contact;
     if (pend) {
@@ -67,7 +67,7 @@ fn push(b: u32, contact: real, hh: real) {
     add(&v, &cv, b, inc);
 }
 
-// engine::integrate::forces — returns whether any contact is closed.
+// engine::cradle::forces — returns whether any contact is closed.
 fn forces() -> bool {
     var closed = false;
     for (var c = 0u; c < nc; c++) {
@@ -89,7 +89,7 @@ fn forces() -> bool {
     return closed;
 }
 
-// engine::integrate::graded_steps — at most s0; small steps near contact
+// engine::cradle::graded_steps — at most s0; small steps near contact
 // kinks: h·(T/tc)^(q/4) at time distance T < tc from the nearest kink, at
 // most T/2 before a kink and 2T after it, never below h_min; kinks at
 // T ≥ 2·s0 restrict nothing.
@@ -132,7 +132,7 @@ fn graded_step(s0: real, h: real, h_min: real, tc: real, quarters: u32) -> real 
     return graded_from(cap, near, s0, h, h_min, tc, quarters);
 }
 
-// engine::integrate::stiffness_cap — s0, at most h_stiff/Λ^{1/4} (not below
+// engine::cradle::stiffness_cap — s0, at most h_stiff/Λ^{1/4} (not below
 // h_min) while a contact is closed; Λ bounds (ω/ω_ref)⁴.
 fn stiffness_cap(s0: real, h_stiff: real, h_min: real) -> real {
     var lam = real(0.0);
@@ -161,7 +161,7 @@ fn impact_speed(i: u32, a: u32, vcm: real) -> real {
     return v[i];
 }
 
-// engine::integrate::Lanes::exact_impact — the isolated impact that contact c
+// engine::cradle::Lanes::exact_impact — the isolated impact that contact c
 // starts, in one jump, if nothing else can touch while it lasts.
 fn exact_impact(c: u32) -> Impact {
     let zero = real(0.0);
@@ -208,7 +208,7 @@ fn exact_impact(c: u32) -> Impact {
     return out;
 }
 
-// engine::integrate::Lanes::load — the scene's constants and the state it
+// engine::cradle::Lanes::load — the scene's constants and the state it
 // reached in the last dispatch, from the buffers (the CPU loads a lane).
 fn load(i: u32) {
     load_scene(i);
@@ -243,7 +243,7 @@ fn load(i: u32) {
     }
 }
 
-// engine::integrate::Lanes::ready — free flight to the next onset (free line,
+// engine::cradle::Lanes::ready — free flight to the next onset (free line,
 // isolated impacts in closed form on the way: Lanes::fly), then the end checks.
 // END_RUNNING: a step is due; FLY_AGAIN: an impact was taken, look again.
 fn ready() -> u32 {
@@ -308,7 +308,7 @@ fn ready() -> u32 {
     return end_check();
 }
 
-// engine::integrate::Lanes::plan_steps — the step: graded near kinks; on a
+// engine::cradle::Lanes::plan_steps — the step: graded near kinks; on a
 // pendulum long in free flight and landing exactly on the duration. Then the
 // overlaps at its start and, damped, each contact's χ.
 fn plan_steps() {
@@ -343,7 +343,7 @@ fn plan_steps() {
     }
 }
 
-// engine::integrate::Lanes::substeps —
+// engine::cradle::Lanes::substeps —
 // one step: velocity-Verlet substeps (kick, drift, forces, kick), the
 // closing half kick of each joined with the opening one of the next.
 fn substeps() {
@@ -361,7 +361,7 @@ fn substeps() {
     }
 }
 
-// engine::integrate::Lanes::account — time, onsets, overlaps, releases, the
+// engine::cradle::Lanes::account — time, onsets, overlaps, releases, the
 // kink impulse correction; whether the velocities are still finite.
 fn account() -> bool {
     let t_start = tt[0];
@@ -402,7 +402,7 @@ fn account() -> bool {
     return finite;
 }
 
-// engine::integrate::Lanes::finish — the state back to the buffers.
+// engine::cradle::Lanes::finish — the state back to the buffers.
 fn finish(i: u32, end: u32) {
     let o = hd.output;
     let nw = hd.n_weights;
@@ -419,7 +419,7 @@ fn finish(i: u32, end: u32) {
     finish_scene(i, end);
 }
 
-// engine::integrate::integrate — at most `left` loop rounds of scene i, from
+// engine::cradle::integrate — at most `left` loop rounds of scene i, from
 // the state it reached; the state back to the buffers. Returns the rounds
 // spent, one more for the load (≥ 1 however soon the scene ends).
 fn integrate(i: u32, left: u32) -> u32 {

@@ -1,5 +1,5 @@
 //! The scalar kernels of the integrator that the shader repeats operation for
-//! operation (same names in `shaders/lanes.wgsl` and `shaders/wide.wgsl`).
+//! operation (same names in `shaders/cradle/lanes.wgsl` and `shaders/cradle/wide.wgsl`).
 
 use super::*;
 

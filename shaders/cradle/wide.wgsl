@@ -100,7 +100,7 @@ fn count(yes: bool) -> u32 {
     return reduce(Red(z, z, z, select(0u, 1u, yes)), RED_MIN).u;
 }
 
-// engine::integrate::add for one owned value: x += inc, Kahan-compensated
+// engine::cradle::add for one owned value: x += inc, Kahan-compensated
 // when COMPENSATED; returns x and its compensation.
 fn kahan(x: real, cx: real, inc: real) -> array<real, 2> {
     if (COMPENSATED) {
@@ -123,7 +123,7 @@ fn any_closed() -> bool {
     return count(me < nc && r_gt(wd[me], real(0.0))) > 0u;
 }
 
-// engine::integrate::kick — body me: air drag, then its contact pushes
+// engine::cradle::kick — body me: air drag, then its contact pushes
 // (left by contact me, right by contact me − 1) and gravity.
 fn kick(hh: real) {
     workgroupBarrier(); // the forces are written
@@ -148,7 +148,7 @@ fn kick(hh: real) {
     }
 }
 
-// engine::integrate::forces — contact me's force; on a pendulum, body me's
+// engine::cradle::forces — contact me's force; on a pendulum, body me's
 // gravity (the positions summed along the chain by invocation 0, in the
 // CPU's order).
 fn forces() {
@@ -177,7 +177,7 @@ fn forces() {
     }
 }
 
-// engine::integrate::graded_steps (see lanes.wgsl) — contact me's cap and
+// engine::cradle::graded_steps (see lanes.wgsl) — contact me's cap and
 // kink distance, the least of each over the chain.
 // (plan_steps's barrier: velocities, forces and accelerations are written)
 fn graded_step(s0: real, h: real, h_min: real, tc: real, quarters: u32) -> real {
@@ -214,7 +214,7 @@ fn graded_step(s0: real, h: real, h_min: real, tc: real, quarters: u32) -> real 
     return graded_from(least.a, least.b, s0, h, h_min, tc, quarters);
 }
 
-// engine::integrate::stiffness_cap — contact me's term of Λ, the largest over the chain.
+// engine::cradle::stiffness_cap — contact me's term of Λ, the largest over the chain.
 // (plan_steps's barrier: overlaps are written)
 fn stiffness_cap(s0: real, h_stiff: real, h_min: real) -> real {
     var x = real(0.0);
@@ -248,7 +248,7 @@ fn impact_speed(i: u32, a: u32, vcm: real) -> real {
     return wv[i];
 }
 
-// engine::integrate::Lanes::exact_impact — the isolated impact that contact c
+// engine::cradle::Lanes::exact_impact — the isolated impact that contact c
 // starts, in one jump, if nothing else can touch while it lasts: each
 // invocation checks its contact, then moves it.
 fn exact_impact(c: u32) -> Impact {
@@ -299,7 +299,7 @@ fn exact_impact(c: u32) -> Impact {
     return Impact(true, tc, r_div(r_mul(params[p0 + p_imp_d(nb, nw) + c], u), w));
 }
 
-// engine::integrate::Lanes::load — the scene's constants and state; each
+// engine::cradle::Lanes::load — the scene's constants and state; each
 // invocation its body and contact.
 fn load(i: u32) {
     workgroupBarrier(); // the last scene's values are read
@@ -352,7 +352,7 @@ fn load(i: u32) {
     }
 }
 
-// engine::integrate::Lanes::ready — free flight to the next onset (the
+// engine::cradle::Lanes::ready — free flight to the next onset (the
 // earliest over the contacts, the lowest on ties), isolated impacts in closed
 // form, then the end checks (lanes.wgsl's `ready`).
 fn ready() -> u32 {
@@ -416,7 +416,7 @@ fn ready() -> u32 {
     return end_check();
 }
 
-// engine::integrate::Lanes::plan_steps — the step (lanes.wgsl's
+// engine::cradle::Lanes::plan_steps — the step (lanes.wgsl's
 // `plan_steps`), then contact me's overlap at its start and, damped, its χ.
 fn plan_steps() {
     workgroupBarrier(); // velocities and overlaps are written
@@ -451,7 +451,7 @@ fn plan_steps() {
     }
 }
 
-// engine::integrate::Lanes::substeps — one step: velocity-Verlet substeps
+// engine::cradle::Lanes::substeps — one step: velocity-Verlet substeps
 // (kick, drift, forces, kick), the closing half kick of each joined with the
 // opening one of the next.
 fn substeps() {
@@ -474,7 +474,7 @@ fn substeps() {
     // `account`'s reduction: the kink correction moves no overlap.
 }
 
-// engine::integrate::Lanes::account — time, onsets, overlaps, releases, the
+// engine::cradle::Lanes::account — time, onsets, overlaps, releases, the
 // kink impulse correction (contact me's, applied by the bodies it pushes, in
 // the CPU's order); whether the velocities are still finite.
 fn account() -> bool {
@@ -540,7 +540,7 @@ fn account() -> bool {
     return ((all.u >> 8u) & 255u) == 0u;
 }
 
-// engine::integrate::Lanes::finish — the state back to the buffers: each
+// engine::cradle::Lanes::finish — the state back to the buffers: each
 // invocation its body and contact, invocation 0 the scalars and words.
 fn finish(i: u32, end: u32) {
     let o = hd.output;
@@ -560,7 +560,7 @@ fn finish(i: u32, end: u32) {
     }
 }
 
-// engine::integrate::integrate — at most `left` loop rounds of scene i (as
+// engine::cradle::integrate — at most `left` loop rounds of scene i (as
 // lanes.wgsl's `integrate`); `ended`: why it stopped, or END_RUNNING.
 var<private> ended: u32;
 

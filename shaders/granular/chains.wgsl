@@ -8,12 +8,12 @@
 // same order per bead and per contact. What the CPU's loops accumulate over
 // the chain are reductions here that are exact in any order (the first and
 // last moving bead, the largest overlap ratio, "some velocity is not
-// finite"). The host (src/backend/gpu/chains.rs) starts each chain as the
+// finite"). The host (src/backend/gpu/granular.rs) starts each chain as the
 // CPU does (State::start, the observers at t = 0), runs dispatches of up to
 // `ctl.budget` steps until every chain is done, and finishes each from the
 // state read back (engine::granular::run::finish). WGSL has no u64: steps
 // are two u32 words. x0, the first bead's displacement, is not kept (only
-// traces use it). The prelude (backend::gpu::chains::chain_shader) gives
+// traces use it). The prelude (backend::gpu::granular::chain_shader) gives
 // the constants WG, MAX_STAGES, MARGIN_EXTRA, CHECK_MASK, F_*, SNAP_*,
 // ST_*, the reals END_SCALE, ALMOST_ONE, HALF_PI and PI (as the CPU rounds
 // them), the precision's `real` and its arithmetic r_* (backend::layout,
@@ -24,7 +24,7 @@
 // (step::half_sine, its factors printed from SINE_FACTORS). `real(x)` of a
 // literal is the precision's nearest value (layout::body_for).
 
-// One chain's header (backend::gpu::chains::ChainHead): sizes, the state
+// One chain's header (backend::gpu::granular::ChainHead): sizes, the state
 // kept between steps, and offsets into R of its reals.
 struct Head {
     n: u32,
