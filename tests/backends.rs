@@ -1118,6 +1118,18 @@ fn gpu_chain_kernel_gives_the_cpus_chain_outcomes() {
         j.plan.precision = Precision::Df64;
         jobs.push(Some(j));
     }
+    // A column under gravity (a 60-bead dimer on a floor, pushed down at
+    // the top): contact j's static force is the weight above it; f64, df64.
+    let column = "balls = 60\nradius = 0.005\n[pattern]\nradius = [0.005, 0.0035]\n[walls]\nleft = true\n[gravity]\ng = 9.80665\n[pulse]\nbead = 59\nforce = -0.5\nduration = 1e-5\n[probes]\nbeads = [10, 40]\n[stop]\nduration = 3e-4\n";
+    let columns = jobs.len();
+    for p in [Precision::F64, Precision::Df64] {
+        let s = Scene::from_toml_str("column", column).unwrap();
+        let solver = Solver::resolve(&s, &Overrides::default()).unwrap();
+        let beads = Beads::from_scene(&s);
+        let mut plan = granular::plan(&beads, &solver, None);
+        plan.precision = p;
+        jobs.push(Some(ChainJob { beads, plan }));
+    }
     // 24 precompressed chains of 10^4 beads (a short pulse run): ~25 MB of
     // reals, more than one transfer group (`TRANSFER_BYTES`, 16 MB) up and
     // back, the small chains before them in the first.
@@ -1171,7 +1183,7 @@ fn gpu_chain_kernel_gives_the_cpus_chain_outcomes() {
     assert_eq!(status(&gpu[1]), Status::Invalid);
     assert_eq!(status(&gpu[5]), Status::StepCap);
     assert_eq!(gpu[5].steps, 777);
-    for k in [0, 2, 3, 4] {
+    for k in [0, 2, 3, 4, columns, columns + 1] {
         assert_eq!(status(&gpu[k]), Status::Ok, "chain {k}");
     }
     // Regions around crossings redone (step::Refine), the same ones on both

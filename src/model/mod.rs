@@ -174,6 +174,6 @@ pub fn mixed_sweep(base: &Scene) -> String {
     format!(
         "a scene like the base scene: the base scene is {base} and this value makes {value} \
          (a sweep's scenes are all cradles or all granular chains; a chain of at most 64 beads \
-         is one when it has [walls], [pulse], [probes], [record], [pattern], [taper] or [impurity])"
+         is one when it has [walls], [pulse], [probes], [record], [pattern], [taper], [impurity] or [gravity])"
     )
 }

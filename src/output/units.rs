@@ -13,7 +13,7 @@ pub fn unit(col: &str) -> Option<&'static str> {
         "density" => "kg/m³",
         "young_modulus" => "Pa",
         "velocity" | "pulse_speed" => "m/s",
-        "gravity" => "m/s²",
+        "gravity" | "g" => "m/s²",
         "duration" | "t_contact" | "t_release" | "dt" | "t" | "t_end" | "every" => "s",
         "air_drag" => "1/s",
         "precompression" | "force" => "N",

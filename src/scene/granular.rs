@@ -54,6 +54,7 @@ impl SceneSpec {
             || self.pattern.is_some()
             || self.taper.is_some()
             || self.impurity.is_some()
+            || self.gravity.is_some()
     }
 
     /// Glue, a pendulum and damping belong to the cradle engine: a chain
@@ -62,7 +63,7 @@ impl SceneSpec {
         let why = if n > MAX_BALLS {
             format!("a chain of {n} beads (above {MAX_BALLS}: a granular chain)")
         } else {
-            "a granular chain (a scene with [walls], [pulse], [record], [probes], [pattern], [taper] or [impurity])".to_string()
+            "a granular chain (a scene with [walls], [pulse], [record], [probes], [pattern], [taper], [impurity] or [gravity])".to_string()
         };
         if self.glue.as_deref().is_some_and(|g| g.contains('=')) {
             return Err(c.err(
@@ -268,6 +269,44 @@ impl SceneSpec {
         Ok(())
     }
 
+    /// `[gravity] g` (m/s²; standard gravity when left out): at least 0;
+    /// above 0 it needs a floor to stand on (the left wall) and touching
+    /// beads (a column starts in its static equilibrium, which has no gaps).
+    fn gravity_of(
+        &self,
+        c: &Check,
+        g: &super::spec::GravitySpec,
+        setup: &ChainSetup,
+        gap: &[f64],
+    ) -> Result<f64, InputError> {
+        let g = c.num(
+            "gravity.g",
+            g.g.unwrap_or(STANDARD_GRAVITY),
+            non_negative,
+            "must be ≥ 0 (m/s²)",
+        )?;
+        if g > 0.0 {
+            if setup.left_wall.is_none() {
+                return Err(c.err(
+                    "gravity.g",
+                    g,
+                    "a floor: [walls] left = true (gravity pulls every bead towards the left wall)",
+                ));
+            }
+            if let Some(i) = gap.iter().position(|&x| x != 0.0) {
+                return Err(c.err(
+                    "gravity.g",
+                    g,
+                    format!(
+                        "touching beads: gap[{i}] = {} m (a column under gravity starts in its static equilibrium, which has no gaps)",
+                        gap[i]
+                    ),
+                ));
+            }
+        }
+        Ok(g)
+    }
+
     /// Walls, precompression, pulse, record and probes of a chain.
     pub(super) fn chain_setup(
         &self,
@@ -318,6 +357,9 @@ impl SceneSpec {
                 }
                 setup.precompression = f0;
             }
+        }
+        if let Some(g) = &self.gravity {
+            setup.gravity = self.gravity_of(c, g, &setup, gap)?;
         }
         if let Some(p) = &self.pulse {
             setup.pulse = Some(self.pulse_of(c, p, n, duration)?);

@@ -187,9 +187,17 @@ pub struct ChainSetup {
     pub right_wall: Option<Wall>,
     /// Static force F0 (N) between the two walls; 0: none.
     pub precompression: f64,
+    /// `[gravity] g` (m/s²) towards the left wall; 0: none.
+    #[serde(skip_serializing_if = "crate::scene::is_zero")]
+    pub gravity: f64,
     pub pulse: Option<Pulse>,
     pub record: Option<Record>,
     pub probes: Vec<usize>,
+}
+
+/// Whether `x` is zero (a field left out of a serialized scene when unset).
+fn is_zero(x: &f64) -> bool {
+    *x == 0.0
 }
 
 /// A checked scene in SI units, one value per ball (gaps and glue: per contact).

@@ -137,6 +137,14 @@ pub struct WallsSpec {
     pub precompression: Option<f64>,
 }
 
+/// `[gravity]`: a vertical chain (docs/SPEC.md §9): `g` (m/s², default
+/// 9.80665) pulls every bead towards the left wall, the floor.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GravitySpec {
+    pub g: Option<f64>,
+}
+
 /// `[pulse]`: a half-sine force (N) on one bead for `duration` (s).
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -225,6 +233,7 @@ pub(crate) struct RawScene {
     pattern: Option<Spanned<PatternSpec>>,
     taper: Option<Spanned<TaperSpec>>,
     impurity: Option<Spanned<ImpuritySpec>>,
+    gravity: Option<Spanned<GravitySpec>>,
 }
 
 /// A scene as written: every key optional until [`SceneSpec::validate`].
@@ -261,6 +270,8 @@ pub struct SceneSpec {
     pub taper: Option<TaperSpec>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub impurity: Option<ImpuritySpec>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub gravity: Option<GravitySpec>,
     /// Where the scene came from (a path, or `built-in scene NAME`).
     #[serde(skip)]
     pub origin: String,
@@ -314,6 +325,7 @@ impl SceneSpec {
             pattern: take(src, &mut l, "pattern", r.pattern),
             taper: take(src, &mut l, "taper", r.taper),
             impurity: take(src, &mut l, "impurity", r.impurity),
+            gravity: take(src, &mut l, "gravity", r.gravity),
             origin: src.name.clone(),
             lines: l,
         })

@@ -72,6 +72,7 @@ pub const PARAMS: &[(&str, Kind)] = &[
     ("impurity.mass", Kind::Number),
     ("impurity.young_modulus", Kind::Number),
     ("impurity.poisson_ratio", Kind::Number),
+    ("gravity.g", Kind::Number),
 ];
 
 /// A parsed `param` string: name, kind and optional index.
@@ -518,6 +519,11 @@ pub fn apply(spec: &mut SceneSpec, base: &Scene, p: &Param, value: &Value) {
         }
         "impurity.young_modulus" => impurity(spec).young_modulus = Some(num),
         "impurity.poisson_ratio" => impurity(spec).poisson_ratio = Some(num),
+        "gravity.g" => {
+            spec.gravity
+                .get_or_insert_with(crate::scene::spec::GravitySpec::default)
+                .g = Some(num)
+        }
         name if p.kind == Kind::Pattern => {
             let pat = spec.pattern.get_or_insert_with(PatternSpec::default);
             if let Some(v) = pattern_slot_mut(pat, name) {

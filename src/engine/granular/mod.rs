@@ -67,8 +67,11 @@ pub struct Beads {
     pub d0: Vec<f64>,
     /// k_j·δ0_j^{3/2}, computed as the force is (0 without precompression).
     pub f0: Vec<f64>,
-    /// Static force (N).
+    /// Static force (N) between the walls.
     pub precompression: f64,
+    /// Gravity towards the left wall (m/s²; 0: none): contact j's static
+    /// force is then the precompression plus the weight above it.
+    pub gravity: f64,
     pub left_wall: bool,
     pub right_wall: bool,
     /// Initial velocity of each bead (m/s).
@@ -178,12 +181,23 @@ impl Beads {
             k[n] = wall_k(w, n - 1);
         }
         let f = setup.precompression;
+        let g = setup.gravity;
+        // The static force on contact j: the precompression, plus under
+        // gravity the weight of the beads above it (j .. n, towards the
+        // right wall), summed from the top down.
+        let mut weight_above = vec![0.0; n + 1];
+        if g > 0.0 {
+            for j in (0..n).rev() {
+                weight_above[j] = weight_above[j + 1] + s.mass[j] * g;
+            }
+        }
         let d0: Vec<f64> = (0..=n)
             .map(|j| {
+                let fj = if g > 0.0 { f + weight_above[j] } else { f };
                 if k[j] == 0.0 {
                     0.0
-                } else if f > 0.0 {
-                    (f / k[j]).powf(2.0 / 3.0)
+                } else if fj > 0.0 {
+                    (fj / k[j]).powf(2.0 / 3.0)
                 } else if (1..n).contains(&j) {
                     -s.gap[j - 1]
                 } else {
@@ -204,6 +218,7 @@ impl Beads {
             d0,
             f0,
             precompression: f,
+            gravity: g,
             left_wall: setup.left_wall.is_some(),
             right_wall: setup.right_wall.is_some(),
             v0: s.velocity.clone(),
@@ -250,7 +265,7 @@ impl Beads {
                 t = t.min(contact_time(mu, self.k[j], v));
             }
         }
-        if self.precompression > 0.0 {
+        if self.precompression > 0.0 || self.gravity > 0.0 {
             for i in 0..self.n {
                 let w2 = 2.0
                     * (self.linear_stiffness(i) + self.linear_stiffness(i + 1))
@@ -277,14 +292,19 @@ impl Beads {
     /// The slowest wave the chain carries for bead speeds `v` (m/s): the
     /// linear sound speed under precompression, else Nesterenko's
     /// solitary-wave speed ([`nesterenko_speed`]) of the softest, heaviest
-    /// bead pair.
+    /// bead pair (under gravity the faster of the two at each pair).
     pub fn wave_speed(&self, v: f64) -> f64 {
         let mut c = f64::INFINITY;
         for i in 0..self.n - 1 {
             let j = i + 1;
             let m = self.mass[i].max(self.mass[j]);
             let a = self.spacing[i];
-            let speed = if self.precompression > 0.0 {
+            let speed = if self.gravity > 0.0 {
+                // Loaded by the weight above, least near the top: the
+                // faster of the linear and the solitary wave.
+                (a * (self.linear_stiffness(j) / m).sqrt())
+                    .max(nesterenko_speed(self.k[j], m, a, v))
+            } else if self.precompression > 0.0 {
                 a * (self.linear_stiffness(j) / m).sqrt()
             } else {
                 nesterenko_speed(self.k[j], m, a, v)
@@ -304,7 +324,9 @@ impl Beads {
 
     /// Total energy (J) relative to rest: kinetic, plus each contact's
     /// elastic energy U(δ) − U(δ0) − f0·(δ − δ0) ([`excess_energy`]); with
-    /// both walls fixed the f0 terms sum to zero, so this is conserved.
+    /// both walls fixed the f0 terms sum to zero, and under gravity to the
+    /// beads' potential energy Σ m·g·u (u: a bead's displacement from
+    /// rest, away from the floor), so this is conserved.
     pub fn energy(&self, p: &[f64], v: &[f64]) -> f64 {
         let kin: f64 = self.mass.iter().zip(v).map(|(m, v)| 0.5 * m * v * v).sum();
         let el: f64 = (0..=self.n)
