@@ -134,6 +134,9 @@ pub enum Command {
     },
     /// Write Slurm batch scripts that run a sweep as a job array and merge it.
     Slurm(SlurmArgs),
+    /// Search for the design that minimises or maximises an outcome column
+    /// (CMA-ES over any sweepable key; docs/SPEC.md §10).
+    Optimize(OptimizeArgs),
     /// List the built-in scenes.
     Scenes,
 }
@@ -208,6 +211,30 @@ pub struct SweepArgs {
     /// steps twice as long (Richardson); costs about 60% more.
     #[arg(long)]
     pub error_estimate: bool,
+    #[command(flatten)]
+    pub solver: SolverFlags,
+}
+
+/// `cradle optimize`'s flags.
+#[derive(clap::Args, Debug, Clone)]
+#[command(
+    after_help = "Examples:\n  cradle optimize examples/protector.toml --out runs.csv --best best.toml\n  cradle run best.toml   # the best design, bit for bit"
+)]
+pub struct OptimizeArgs {
+    /// Problem TOML file: a base scene, variables, an objective, constraints, the optimizer (docs/SPEC.md §10).
+    pub problem: PathBuf,
+    /// Every evaluation as a CSV row (written whole at the end).
+    #[arg(long, value_name = "FILE")]
+    pub out: PathBuf,
+    /// The best feasible design as a scene file that `cradle run` reproduces.
+    #[arg(long, value_name = "FILE")]
+    pub best: Option<PathBuf>,
+    /// auto: a hardware GPU if there is one, else the CPU.
+    #[arg(long, value_enum, default_value_t = BackendChoice::Auto)]
+    pub backend: BackendChoice,
+    /// Worker threads for the CPU backend [default: all cores].
+    #[arg(long, allow_negative_numbers = true)]
+    pub threads: Option<i64>,
     #[command(flatten)]
     pub solver: SolverFlags,
 }

@@ -37,6 +37,7 @@ pub mod choice;
 pub mod engine;
 pub mod error;
 pub mod model;
+pub mod optimize;
 pub mod output;
 pub mod request;
 pub mod scene;

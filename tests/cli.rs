@@ -971,3 +971,105 @@ fn a_wall_impulse_cut_off_by_the_default_end_says_partial() {
     let out = String::from_utf8(success(&["run", &long])).unwrap();
     assert!(out.contains("impulse") && !out.contains("partial"), "{out}");
 }
+
+/// `cradle optimize` (docs/SPEC.md §10): the same seed writes the same
+/// bytes whatever the thread count; every row is labelled with the values
+/// it ran with; the best design is a scene file that `cradle run`
+/// reproduces bit for bit and that beats every other feasible row; bad
+/// problems name the file, the key and what is allowed (exit 2).
+#[test]
+fn optimize_is_deterministic_and_its_best_reproduces() {
+    let dir = tempfile::tempdir().unwrap();
+    let problem = write(
+        &dir,
+        "p.toml",
+        "[scene]\nballs = 3\nvelocity = [1.0, 0, 0]\n\
+         [[variable]]\nname = \"mass[1..2]\"\nmin = 0.01\nmax = 1.0\nscale = \"log\"\n\
+         [[variable]]\nname = \"gap[0]\"\nchoices = [0.0, 1e-5]\n\
+         [objective]\nmaximize = \"v_2\"\n\
+         [[constraint]]\nexpr = \"total_mass <= 0.6\"\n\
+         [optimizer]\npopulation = 8\nevaluations = 64\nseed = 3\n",
+    );
+    let out = |name: &str, threads: &str| {
+        let o = dir.path().join(name).display().to_string();
+        let b = dir
+            .path()
+            .join(format!("{name}.best.toml"))
+            .display()
+            .to_string();
+        success(&[
+            "optimize",
+            &problem,
+            "--out",
+            &o,
+            "--best",
+            &b,
+            "--backend",
+            "cpu",
+            "--threads",
+            threads,
+        ]);
+        (fs::read_to_string(&o).unwrap(), b)
+    };
+    let (one, best) = out("one.csv", "1");
+    let (two, _) = out("two.csv", "2");
+    assert_eq!(one, two, "thread count changed the bytes");
+    let mut rows = csv::Reader::from_reader(one.as_bytes());
+    let header = rows.headers().unwrap().clone();
+    let col = |name: &str| header.iter().position(|h| h == name).unwrap();
+    let recs: Vec<csv::StringRecord> = rows.records().map(|r| r.unwrap()).collect();
+    assert_eq!(recs.len(), 64);
+    // The best feasible row: its objective is the largest of the feasible.
+    let feasible: Vec<&csv::StringRecord> = recs
+        .iter()
+        .filter(|r| &r[col("feasible")] == "true")
+        .collect();
+    assert!(!feasible.is_empty());
+    for r in &recs {
+        let m: f64 = r[col("total_mass")].parse().unwrap();
+        let (ok, feas) = (&r[col("status")] == "ok", &r[col("feasible")] == "true");
+        assert_eq!(
+            feas,
+            ok && m <= 0.6,
+            "feasible = ok and within the constraint"
+        );
+        // Each row carries the values it ran with, inside their ranges.
+        let (m1, m2): (f64, f64) = (
+            r[col("mass[1]")].parse().unwrap(),
+            r[col("mass[2]")].parse().unwrap(),
+        );
+        assert!((0.01..=1.0).contains(&m1) && (0.01..=1.0).contains(&m2));
+    }
+    let top = feasible
+        .iter()
+        .map(|r| r[col("v_2")].parse::<f64>().unwrap())
+        .fold(f64::NEG_INFINITY, f64::max);
+    let run = success(&["run", &best, "--format", "csv"]);
+    let mut rr = csv::Reader::from_reader(&run[..]);
+    let h = rr.headers().unwrap().clone();
+    let r = rr.records().next().unwrap().unwrap();
+    let v2 = &r[h.iter().position(|x| x == "v_2").unwrap()];
+    assert_eq!(
+        v2.parse::<f64>().unwrap(),
+        top,
+        "the best file reproduces the best row"
+    );
+    // Bad problems.
+    let bad = |text: &str| {
+        let p = write(&dir, "bad.toml", text);
+        let o = dir.path().join("bad.csv").display().to_string();
+        bad_input(&["optimize", &p, "--out", &o, "--backend", "cpu"])
+    };
+    let base = "[scene]\nballs = 3\nvelocity = [1.0, 0, 0]\n";
+    let e = bad(&format!("{base}[[variable]]\nname = \"mass[1]\"\nmin = 0.1\nmax = 1.0\n[objective]\nminimize = \"v_9\"\n"));
+    assert!(
+        e.contains("bad.toml") && e.contains("objective") && e.contains("v_2"),
+        "{e}"
+    );
+    let e = bad(&format!("{base}[[variable]]\nname = \"mass[1]\"\nmin = 1.0\nmax = 0.1\n[objective]\nminimize = \"v_2\"\n"));
+    assert!(e.contains("bad.toml:4") && e.contains("min < max"), "{e}");
+    let e = bad(&format!("{base}[[variable]]\nname = \"glue\"\nmin = 0.0\nmax = 1.0\n[objective]\nminimize = \"v_2\"\n"));
+    assert!(e.contains("choices"), "{e}");
+    let e = bad(&format!("{base}[objective]\nminimize = \"v_2\"\n"));
+    assert!(e.contains("variable"), "{e}");
+}

@@ -46,12 +46,12 @@ fn mix(mut z: u64) -> u64 {
     z ^ (z >> 31)
 }
 
-fn hash(seed: u64, a: u64, b: u64, c: u64) -> u64 {
+pub(crate) fn hash(seed: u64, a: u64, b: u64, c: u64) -> u64 {
     mix(mix(mix(mix(seed) ^ a) ^ b) ^ c)
 }
 
 /// A uniform number in [0, 1) from 53 bits of `h`.
-fn unit_of(h: u64) -> f64 {
+pub(crate) fn unit_of(h: u64) -> f64 {
     (h >> 11) as f64 / (1u64 << 53) as f64
 }
 

@@ -23,6 +23,7 @@ use crate::error::{InputError, Source};
 use crate::output::row::{ColType, Field};
 use crate::scene::{Scene, SceneSpec};
 pub use axis::{Param, Value, Values};
+pub(crate) use parse::base_scene;
 
 /// Most scenes one sweep may have (refused before anything is allocated).
 pub const MAX_SCENES: u64 = 1_000_000_000;

@@ -56,6 +56,47 @@ struct InlineScene {
     scene: RawScene,
 }
 
+/// The base scene of a sweep or problem file `src`: a scene file its
+/// `scene` key names (relative to `dir`, added to `inputs`), or its inline
+/// `[scene]` table.
+pub(crate) fn base_scene(
+    src: &Source,
+    scene: Option<&Spanned<toml::Value>>,
+    dir: &Path,
+    inputs: &mut Vec<PathBuf>,
+) -> Result<SceneSpec, InputError> {
+    Ok(match scene {
+        None => return Err(InputError::Missing {
+            origin: src.name.clone(),
+            line: None,
+            key: "scene".into(),
+            help: "`scene = \"file.toml\"` (relative to the sweep file) or an inline [scene] table"
+                .into(),
+        }),
+        Some(s) => match s.get_ref() {
+            toml::Value::String(file) => {
+                let p = dir.join(file);
+                let scene_src = Source::read(&p)?;
+                inputs.push(p);
+                SceneSpec::parse(&scene_src)?
+            }
+            toml::Value::Table(_) => {
+                let inline: InlineScene = src.parse_toml()?;
+                SceneSpec::from_raw(src, inline.scene)?
+            }
+            other => {
+                return Err(InputError::Invalid {
+                    origin: src.name.clone(),
+                    line: Some(src.line(s.span().start)),
+                    key: "scene".into(),
+                    value: other.to_string(),
+                    allowed: "a scene file name (string) or a [scene] table".into(),
+                })
+            }
+        },
+    })
+}
+
 /// A sweep file being read: its errors carry its name and lines.
 struct Ctx<'a> {
     src: &'a Source,
@@ -86,37 +127,7 @@ impl Ctx<'_> {
         dir: &Path,
         inputs: &mut Vec<PathBuf>,
     ) -> Result<SceneSpec, InputError> {
-        let (cx, src) = (self, self.src);
-        Ok(match &raw.scene {
-            None => {
-                return Err(InputError::Missing {
-                    origin: cx.origin.clone(),
-                    line: None,
-                    key: "scene".into(),
-                    help: "`scene = \"file.toml\"` (relative to the sweep file) or an inline [scene] table".into(),
-                })
-            }
-            Some(s) => match s.get_ref() {
-                toml::Value::String(file) => {
-                    let p = dir.join(file);
-                    let scene_src = Source::read(&p)?;
-                    inputs.push(p);
-                    SceneSpec::parse(&scene_src)?
-                }
-                toml::Value::Table(_) => {
-                    let inline: InlineScene = src.parse_toml()?;
-                    SceneSpec::from_raw(src, inline.scene)?
-                }
-                other => {
-                    return Err(cx.invalid(
-                        Some(src.line(s.span().start)),
-                        "scene",
-                        other.to_string(),
-                        "a scene file name (string) or a [scene] table".into(),
-                    ))
-                }
-            },
-        })
+        base_scene(self.src, raw.scene.as_ref(), dir, inputs)
     }
 
     /// `[sample]`: a sampling design's layout.

@@ -1,0 +1,749 @@
+//! `cradle optimize` (docs/SPEC.md §10): designs found by an evolution
+//! strategy over any sweepable key, each generation one batch of scenes on
+//! the backend.
+//!
+//! A problem file is a base scene (as in a sweep file), `[[variable]]`
+//! tables (a key, or a range of indices `radius[1..20]`, continuous in
+//! [min, max] on a linear or log scale, or a choice from a list),
+//! `[objective]` (minimize or maximize an outcome column), `[[constraint]]`
+//! comparisons and `[optimizer]` (method, population, evaluations, seed).
+//! The strategy works in the unit cube (`[0, 1]` per variable, mirrored
+//! at its faces); a candidate's values are computed from its coordinates,
+//! so every row is labelled with the values it ran with. A candidate is
+//! *feasible* when its row is `ok` (so within its tolerance: a flagged row
+//! never wins) and it meets every constraint; the strategy ranks feasible
+//! candidates by the objective, then the others by how far they miss the
+//! constraints, then the failed runs.
+
+pub mod cmaes;
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use serde::Deserialize;
+use toml::Spanned;
+
+use crate::backend::Backend;
+use crate::choice::Choice;
+use crate::engine::{Overrides, Status};
+use crate::error::{InputError, Source};
+use crate::model::Model;
+use crate::output::row::{self, Cell, Field};
+use crate::scene::{Scene, SceneSpec};
+use crate::sweep::axis::{self, Kind, Param, Value};
+use crate::sweep::design::{hash, unit_of};
+
+/// The search methods (`[optimizer] method`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Method {
+    /// CMA-ES (Hansen's tutorial; [`cmaes`]).
+    CmaEs,
+    /// Uniform random candidates in the variables' ranges: the baseline.
+    Random,
+}
+
+impl Choice for Method {
+    const ALL: &'static [Self] = &[Method::CmaEs, Method::Random];
+    fn name(self) -> &'static str {
+        match self {
+            Method::CmaEs => "cma-es",
+            Method::Random => "random",
+        }
+    }
+}
+
+/// What one variable may take.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Domain {
+    /// min ..= max; on a log scale the coordinate is ln x's; an integer key
+    /// takes the nearest whole number.
+    Range { min: f64, max: f64, log: bool },
+    /// One of these (the coordinate's share of [0, 1)).
+    Choices(Vec<Value>),
+}
+
+/// One variable: a sweepable key (one index of a range) and its domain.
+#[derive(Clone, Debug)]
+pub struct Variable {
+    /// The column name (`radius[3]`).
+    pub name: String,
+    pub param: Param,
+    pub domain: Domain,
+}
+
+impl Variable {
+    /// The value at coordinate `u` ∈ [0, 1].
+    pub fn value(&self, u: f64) -> Value {
+        match &self.domain {
+            Domain::Range { min, max, log } => {
+                let x = if *log {
+                    (min.ln() + u * (max.ln() - min.ln())).exp()
+                } else {
+                    min + u * (max - min)
+                };
+                let x = x.clamp(*min, *max);
+                Value::Num(if self.param.kind == Kind::Integer {
+                    x.round()
+                } else {
+                    x
+                })
+            }
+            Domain::Choices(c) => c[((u * c.len() as f64) as usize).min(c.len() - 1)].clone(),
+        }
+    }
+}
+
+/// A constraint `lhs op rhs`: `lhs` an outcome column or `total_mass`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Constraint {
+    pub lhs: String,
+    pub op: Op,
+    pub rhs: f64,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Op {
+    Le,
+    Lt,
+    Ge,
+    Gt,
+}
+
+impl Constraint {
+    /// How far `x` misses the bound (0: met; NaN misses by infinity).
+    fn miss(&self, x: f64) -> f64 {
+        if x.is_nan() {
+            return f64::INFINITY;
+        }
+        let d = match self.op {
+            Op::Le | Op::Lt => x - self.rhs,
+            Op::Ge | Op::Gt => self.rhs - x,
+        };
+        let strict = matches!(self.op, Op::Lt | Op::Gt);
+        if d > 0.0 || (strict && d == 0.0) {
+            d.max(f64::MIN_POSITIVE)
+        } else {
+            0.0
+        }
+    }
+}
+
+/// A checked problem file.
+#[derive(Debug)]
+pub struct Problem {
+    pub origin: String,
+    /// Files it was read from (the problem file, a scene file it names).
+    pub inputs: Vec<PathBuf>,
+    pub scene: SceneSpec,
+    pub base: Scene,
+    pub variables: Vec<Variable>,
+    /// The objective column and whether it is maximised.
+    pub objective: (String, bool),
+    pub constraints: Vec<Constraint>,
+    pub method: Method,
+    pub population: usize,
+    pub generations: u64,
+    pub seed: u64,
+    pub model: std::sync::Arc<dyn Model>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawProblem {
+    #[allow(dead_code)]
+    description: Option<String>,
+    scene: Option<Spanned<toml::Value>>,
+    variable: Option<Vec<Spanned<RawVariable>>>,
+    objective: Option<Spanned<RawObjective>>,
+    constraint: Option<Vec<Spanned<RawConstraint>>>,
+    optimizer: Option<Spanned<RawOptimizer>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawVariable {
+    name: String,
+    min: Option<f64>,
+    max: Option<f64>,
+    scale: Option<String>,
+    choices: Option<Vec<toml::Value>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawObjective {
+    minimize: Option<String>,
+    maximize: Option<String>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawConstraint {
+    expr: String,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawOptimizer {
+    method: Option<String>,
+    population: Option<i64>,
+    evaluations: Option<i64>,
+    seed: Option<i64>,
+}
+
+/// Most variables a problem may have (CMA-ES keeps an n×n covariance).
+pub const MAX_VARIABLES: usize = 200;
+/// Most evaluations a problem may ask for.
+pub const MAX_EVALUATIONS: i64 = 10_000_000;
+/// Evaluations when `[optimizer] evaluations` is left out.
+pub const DEFAULT_EVALUATIONS: i64 = 1000;
+
+/// Columns every evaluation row starts with, before the variables.
+const LEAD: [&str; 3] = ["generation", "candidate", "feasible"];
+
+impl Problem {
+    pub fn load(path: &Path) -> Result<Problem, InputError> {
+        let src = Source::read(path)?;
+        let mut p = Self::parse(&src, path.parent().unwrap_or(Path::new(".")))?;
+        p.inputs.insert(0, path.to_path_buf());
+        Ok(p)
+    }
+
+    /// Read and check a problem file's text (`dir`: where a scene file it
+    /// names is looked for).
+    pub fn parse(src: &Source, dir: &Path) -> Result<Problem, InputError> {
+        let raw: RawProblem = src.parse_toml()?;
+        let origin = src.name.clone();
+        let invalid = |span: std::ops::Range<usize>, key: &str, value: String, allowed: String| {
+            InputError::Invalid {
+                origin: origin.clone(),
+                line: Some(src.line(span.start)),
+                key: key.to_string(),
+                value,
+                allowed,
+            }
+        };
+        let missing = |key: &str, help: &str| InputError::Missing {
+            origin: origin.clone(),
+            line: None,
+            key: key.to_string(),
+            help: help.to_string(),
+        };
+        let mut inputs = vec![];
+        let scene = crate::sweep::base_scene(src, raw.scene.as_ref(), dir, &mut inputs)?;
+        let base = scene.validate()?;
+        // Variables, ranges expanded.
+        let mut variables: Vec<Variable> = vec![];
+        for v in raw.variable.unwrap_or_default() {
+            let span = v.span();
+            let v = v.into_inner();
+            let bad = |value: String, allowed: &str| {
+                invalid(span.clone(), "variable", value, allowed.to_string())
+            };
+            let domain = match (&v.choices, v.min, v.max) {
+                (Some(c), None, None) if v.scale.is_none() => {
+                    if c.is_empty() {
+                        return Err(bad(v.name.clone(), "`choices` with at least one value"));
+                    }
+                    Domain::Choices(
+                        c.iter()
+                            .map(|x| match x {
+                                toml::Value::Float(f) => Ok(Value::Num(*f)),
+                                toml::Value::Integer(i) => Ok(Value::Num(*i as f64)),
+                                toml::Value::String(s) => Ok(Value::Text(s.clone())),
+                                other => Err(bad(
+                                    other.to_string(),
+                                    "choices that are numbers or strings",
+                                )),
+                            })
+                            .collect::<Result<_, _>>()?,
+                    )
+                }
+                (None, Some(min), Some(max)) => {
+                    let log = match v.scale.as_deref() {
+                        None | Some("linear") => false,
+                        Some("log") => true,
+                        Some(other) => {
+                            return Err(bad(
+                                format!("scale = {other:?}"),
+                                "scale = \"linear\" (the default) or \"log\"",
+                            ))
+                        }
+                    };
+                    if !(min.is_finite() && max.is_finite() && min < max) || (log && min <= 0.0) {
+                        return Err(bad(
+                            format!("{} in [{min}, {max}]", v.name),
+                            if log {
+                                "finite 0 < min < max (a log scale)"
+                            } else {
+                                "finite min < max"
+                            },
+                        ));
+                    }
+                    Domain::Range { min, max, log }
+                }
+                _ => {
+                    return Err(bad(
+                        v.name.clone(),
+                        "either `min` and `max` (and `scale`) or `choices`, not both",
+                    ))
+                }
+            };
+            for name in expand(&v.name).map_err(|e| bad(v.name.clone(), &e))? {
+                let param = Param::parse(&name).map_err(|e| bad(name.clone(), &e))?;
+                if matches!(domain, Domain::Range { .. }) && param.kind == Kind::Glue {
+                    return Err(bad(name, "`choices` for glue (a pattern of `=` and `-`)"));
+                }
+                if variables.iter().any(|w| w.param.overlaps(&param)) {
+                    return Err(bad(name, "variables that set different quantities (this one sets one another variable sets)"));
+                }
+                let var = Variable {
+                    name,
+                    param,
+                    domain: domain.clone(),
+                };
+                // Every value alone (the others at the base scene's) must
+                // make a valid scene of the base scene's kind.
+                let ends: Vec<Value> = match &var.domain {
+                    Domain::Range { .. } => vec![var.value(0.0), var.value(1.0)],
+                    Domain::Choices(c) => c.clone(),
+                };
+                for x in ends {
+                    let mut s = scene.clone();
+                    axis::apply(&mut s, &base, &var.param, &x);
+                    let why = match s.validate() {
+                        Ok(s) if crate::model::kind(&s) == crate::model::kind(&base) => continue,
+                        Ok(_) => crate::model::mixed_sweep(&base),
+                        Err(e) => format!("a value that makes a valid scene ({e})"),
+                    };
+                    return Err(bad(format!("{} = {x}", var.name), &why));
+                }
+                variables.push(var);
+            }
+        }
+        if variables.is_empty() {
+            return Err(missing(
+                "variable",
+                "at least one [[variable]] table: name = \"<key>\" with min/max or choices",
+            ));
+        }
+        if variables.len() > MAX_VARIABLES {
+            return Err(missing(
+                "variable",
+                &format!(
+                    "at most {MAX_VARIABLES} variables ({} given)",
+                    variables.len()
+                ),
+            ));
+        }
+        // The model, wide enough for every candidate.
+        let width = variables
+            .iter()
+            .filter(|v| v.param.name == "balls")
+            .map(|v| match &v.domain {
+                Domain::Range { max, .. } => *max as usize,
+                Domain::Choices(c) => c
+                    .iter()
+                    .filter_map(|x| {
+                        if let Value::Num(n) = x {
+                            Some(*n as usize)
+                        } else {
+                            None
+                        }
+                    })
+                    .max()
+                    .unwrap_or(0),
+            })
+            .fold(base.n, usize::max);
+        let pendulum = base.pendulum.is_some()
+            || variables
+                .iter()
+                .any(|v| matches!(v.param.name.as_str(), "length" | "gravity"));
+        let model = crate::model::of(&base, width, pendulum);
+        let columns = model.header();
+        let known = |c: &str| columns.iter().any(|h| h == c) || c == "total_mass";
+        let allowed_columns =
+            || format!("an outcome column ({}) or total_mass", columns.join(", "));
+        let Some(obj) = raw.objective else {
+            return Err(missing(
+                "objective",
+                "an [objective] table: minimize = \"<column>\" or maximize = \"<column>\"",
+            ));
+        };
+        let span = obj.span();
+        let obj = obj.into_inner();
+        let objective = match (obj.minimize, obj.maximize) {
+            (Some(c), None) => (c, false),
+            (None, Some(c)) => (c, true),
+            _ => {
+                return Err(invalid(
+                    span,
+                    "objective",
+                    "minimize and maximize".into(),
+                    "one of `minimize` or `maximize`".into(),
+                ))
+            }
+        };
+        if !known(&objective.0) || objective.0 == "status" {
+            return Err(invalid(span, "objective", objective.0, allowed_columns()));
+        }
+        let mut constraints = vec![];
+        for c in raw.constraint.unwrap_or_default() {
+            let span = c.span();
+            let expr = c.into_inner().expr;
+            let parsed = parse_constraint(&expr);
+            match parsed {
+                Some(c) if known(&c.lhs) => constraints.push(c),
+                Some(c) => {
+                    return Err(invalid(
+                        span,
+                        "constraint.expr",
+                        expr.clone(),
+                        format!("`{}`: {}", c.lhs, allowed_columns()),
+                    ))
+                }
+                None => {
+                    return Err(invalid(
+                        span,
+                        "constraint.expr",
+                        expr,
+                        "`<column> <= <number>` (or <, >=, >)".into(),
+                    ))
+                }
+            }
+        }
+        let (method, population, evaluations, seed) = match raw.optimizer {
+            None => (Method::CmaEs, None, DEFAULT_EVALUATIONS, 0),
+            Some(o) => {
+                let span = o.span();
+                let o = o.into_inner();
+                let method = match o.method.as_deref() {
+                    None => Method::CmaEs,
+                    Some(m) => Method::from_name(m).ok_or_else(|| {
+                        invalid(
+                            span.clone(),
+                            "optimizer.method",
+                            m.into(),
+                            format!("one of {}", Method::names()),
+                        )
+                    })?,
+                };
+                if let Some(p) = o.population {
+                    if !(2..=100_000).contains(&p) {
+                        return Err(invalid(
+                            span,
+                            "optimizer.population",
+                            p.to_string(),
+                            "2 ..= 100000".into(),
+                        ));
+                    }
+                }
+                let e = o.evaluations.unwrap_or(DEFAULT_EVALUATIONS);
+                if !(1..=MAX_EVALUATIONS).contains(&e) {
+                    return Err(invalid(
+                        span,
+                        "optimizer.evaluations",
+                        e.to_string(),
+                        format!("1 ..= {MAX_EVALUATIONS}"),
+                    ));
+                }
+                let seed = o.seed.unwrap_or(0);
+                if seed < 0 {
+                    return Err(invalid(
+                        span,
+                        "optimizer.seed",
+                        seed.to_string(),
+                        "a whole number ≥ 0".into(),
+                    ));
+                }
+                (method, o.population.map(|p| p as usize), e, seed as u64)
+            }
+        };
+        let population = population.unwrap_or_else(|| cmaes::default_population(variables.len()));
+        Ok(Problem {
+            origin,
+            inputs,
+            scene,
+            base,
+            variables,
+            objective,
+            constraints,
+            method,
+            population,
+            generations: (evaluations as u64 / population as u64).max(1),
+            seed,
+            model,
+        })
+    }
+
+    /// The evaluation table's columns.
+    pub fn header(&self) -> Vec<String> {
+        let mut h: Vec<String> = LEAD.iter().map(|s| s.to_string()).collect();
+        h.extend(self.variables.iter().map(|v| v.name.clone()));
+        h.push("total_mass".into());
+        h.extend(self.model.header());
+        h
+    }
+
+    /// The scene at coordinates `u` (one per variable, in [0, 1]).
+    pub fn spec_at(&self, u: &[f64]) -> SceneSpec {
+        let mut s = self.scene.clone();
+        for (v, &x) in self.variables.iter().zip(u) {
+            axis::apply(&mut s, &self.base, &v.param, &v.value(x));
+        }
+        s
+    }
+}
+
+/// `key[a..b]`: keys a ..= b (both ends included); anything else: itself.
+fn expand(name: &str) -> Result<Vec<String>, String> {
+    let Some((key, rest)) = name.split_once('[') else {
+        return Ok(vec![name.to_string()]);
+    };
+    let Some((a, b)) = rest.strip_suffix(']').and_then(|r| r.split_once("..")) else {
+        return Ok(vec![name.to_string()]);
+    };
+    match (a.trim().parse::<usize>(), b.trim().parse::<usize>()) {
+        (Ok(a), Ok(b)) if a <= b => Ok((a..=b).map(|i| format!("{key}[{i}]")).collect()),
+        _ => Err("a range of indices written `key[a..b]` with a ≤ b (both included)".into()),
+    }
+}
+
+fn parse_constraint(expr: &str) -> Option<Constraint> {
+    for (text, op) in [("<=", Op::Le), (">=", Op::Ge), ("<", Op::Lt), (">", Op::Gt)] {
+        if let Some((l, r)) = expr.split_once(text) {
+            let rhs: f64 = r.trim().parse().ok()?;
+            return rhs.is_finite().then(|| Constraint {
+                lhs: l.trim().to_string(),
+                op,
+                rhs,
+            });
+        }
+    }
+    None
+}
+
+/// Mirror `x` into [0, 1] (a coordinate the strategy put outside the cube).
+fn mirror(x: f64) -> f64 {
+    if !x.is_finite() {
+        return 0.5;
+    }
+    let y = x.rem_euclid(2.0);
+    if y > 1.0 {
+        2.0 - y
+    } else {
+        y
+    }
+}
+
+/// Where a run stands after a generation.
+#[derive(Clone, Debug)]
+pub struct Report {
+    pub generation: u64,
+    pub generations: u64,
+    pub evaluations: u64,
+    /// The best feasible objective so far.
+    pub best: Option<f64>,
+}
+
+/// The best feasible candidate.
+#[derive(Clone, Debug)]
+pub struct Best {
+    pub generation: u64,
+    pub candidate: usize,
+    pub objective: f64,
+    pub spec: SceneSpec,
+}
+
+/// A finished run: its rows (CSV, without the header) and its best design.
+pub struct Finished {
+    pub csv: Vec<u8>,
+    pub best: Option<Best>,
+    pub evaluations: u64,
+    /// Seconds in the engine's batch runs, and in all.
+    pub engine_s: f64,
+    pub wall_s: f64,
+}
+
+/// Run the problem on `backend`; `report` is told after every generation.
+pub fn run(
+    p: &Problem,
+    backend: &dyn Backend,
+    o: &Overrides,
+    report: &mut dyn FnMut(&Report),
+) -> anyhow::Result<Finished> {
+    let t0 = Instant::now();
+    let n = p.variables.len();
+    let lambda = p.population;
+    let mut es = cmaes::Cmaes::new(vec![0.5; n], 0.3, lambda, p.seed);
+    let header = p.model.header();
+    let at = |c: &str| header.iter().position(|h| h == c);
+    let obj_at = at(&p.objective.0);
+    let sign = if p.objective.1 { -1.0 } else { 1.0 };
+    let (mut csv, mut scratch) = (Vec::new(), String::new());
+    let mut best: Option<Best> = None;
+    let mut engine_s = 0.0;
+    for g in 0..p.generations {
+        let xs: Vec<Vec<f64>> = match p.method {
+            Method::CmaEs => es.ask(),
+            Method::Random => (0..lambda)
+                .map(|k| {
+                    (0..n)
+                        .map(|i| unit_of(hash(p.seed, g, k as u64, i as u64)))
+                        .collect()
+                })
+                .collect(),
+        };
+        let us: Vec<Vec<f64>> = xs
+            .iter()
+            .map(|x| x.iter().map(|&v| mirror(v)).collect())
+            .collect();
+        let specs: Vec<SceneSpec> = us.iter().map(|u| p.spec_at(u)).collect();
+        // A candidate whose values make no valid scene of the model: `invalid`.
+        let scenes: Vec<Option<Scene>> = specs
+            .iter()
+            .map(|s| {
+                s.validate()
+                    .ok()
+                    .filter(|sc| crate::model::kind(sc) == crate::model::kind(&p.base))
+            })
+            .collect();
+        let scene_at = |k: usize| {
+            scenes[k].clone().ok_or_else(|| InputError::Data {
+                path: PathBuf::from(&p.origin),
+                what: format!("candidate {k}: no valid scene"),
+            })
+        };
+        let te = Instant::now();
+        let mut built = te;
+        let outcomes = p.model.run(
+            backend,
+            lambda,
+            &scene_at,
+            o,
+            p.model.takes_error_estimate(),
+            &mut built,
+        )?;
+        engine_s += te.elapsed().as_secs_f64();
+        // Each row's cells, its rank key and the row's text.
+        let mut keys = Vec::with_capacity(lambda);
+        for k in 0..lambda {
+            let mut cells: Vec<Cell> = Vec::with_capacity(header.len());
+            outcomes.emit(k, &mut |f| cells.push(Cell::from(f)));
+            let num = |c: Option<usize>| c.and_then(|c| cells[c].as_f64()).unwrap_or(f64::NAN);
+            let total_mass = scenes[k].as_ref().map_or(f64::NAN, |s| s.mass.iter().sum());
+            let value_of = |c: &str| {
+                if c == "total_mass" {
+                    total_mass
+                } else {
+                    num(at(c))
+                }
+            };
+            let objective = if p.objective.0 == "total_mass" {
+                total_mass
+            } else {
+                num(obj_at)
+            };
+            let miss: f64 = p.constraints.iter().map(|c| c.miss(value_of(&c.lhs))).sum();
+            let ok = outcomes.status(k) == Status::Ok;
+            let feasible = ok && miss == 0.0 && objective.is_finite();
+            // Rank: feasible by objective, then by how far they miss, then failed runs.
+            keys.push(if feasible {
+                (0u8, sign * objective)
+            } else if ok {
+                (1, miss)
+            } else {
+                (2, 0.0)
+            });
+            if feasible
+                && best
+                    .as_ref()
+                    .is_none_or(|b| sign * objective < sign * b.objective)
+            {
+                best = Some(Best {
+                    generation: g,
+                    candidate: k,
+                    objective,
+                    spec: specs[k].clone(),
+                });
+            }
+            let mut fields: Vec<Field> = vec![
+                Field::Int(g),
+                Field::Int(k as u64),
+                Field::Text(if feasible { "true" } else { "false" }),
+            ];
+            let values: Vec<Value> = p
+                .variables
+                .iter()
+                .zip(&us[k])
+                .map(|(v, &u)| v.value(u))
+                .collect();
+            fields.extend(values.iter().map(|x| match x {
+                Value::Num(v) => Field::Num(*v),
+                Value::Text(t) => Field::Text(t),
+            }));
+            fields.push(Field::Num(total_mass));
+            let mut sep = false;
+            let mut push = |f: Field| {
+                if sep {
+                    csv.push(b',');
+                }
+                sep = true;
+                row::push_csv_field(&mut csv, row::field_text(f, &mut scratch));
+            };
+            fields.into_iter().for_each(&mut push);
+            outcomes.emit(k, &mut push);
+            csv.push(b'\n');
+        }
+        if p.method == Method::CmaEs {
+            let mut order: Vec<usize> = (0..lambda).collect();
+            order.sort_by(|&a, &b| {
+                keys[a]
+                    .0
+                    .cmp(&keys[b].0)
+                    .then(keys[a].1.total_cmp(&keys[b].1))
+                    .then(a.cmp(&b))
+            });
+            es.tell(&xs, &order);
+        }
+        report(&Report {
+            generation: g,
+            generations: p.generations,
+            evaluations: (g + 1) * lambda as u64,
+            best: best.as_ref().map(|b| b.objective),
+        });
+    }
+    Ok(Finished {
+        csv,
+        best,
+        evaluations: p.generations * lambda as u64,
+        engine_s,
+        wall_s: t0.elapsed().as_secs_f64(),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ranges_expand_and_mirror_stays_in_the_cube() {
+        assert_eq!(
+            expand("radius[1..3]").unwrap(),
+            ["radius[1]", "radius[2]", "radius[3]"]
+        );
+        assert_eq!(expand("gap").unwrap(), ["gap"]);
+        assert!(expand("radius[3..1]").is_err());
+        for x in [-0.25, 0.3, 1.25, 2.5, -3.7] {
+            let y = mirror(x);
+            assert!((0.0..=1.0).contains(&y), "{x} → {y}");
+        }
+        assert_eq!(mirror(1.25), 0.75);
+        assert_eq!(mirror(-0.25), 0.25);
+        let c = parse_constraint("total_mass <= 0.2").unwrap();
+        assert_eq!((c.lhs.as_str(), c.op, c.rhs), ("total_mass", Op::Le, 0.2));
+        assert_eq!(c.miss(0.1), 0.0);
+        assert!(c.miss(0.3) > 0.0);
+        assert!(parse_constraint("total_mass == 1").is_none());
+    }
+}
