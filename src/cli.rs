@@ -223,7 +223,7 @@ pub struct SweepArgs {
 pub struct OptimizeArgs {
     /// Problem TOML file: a base scene, variables, an objective, constraints, the optimizer (docs/SPEC.md §10).
     pub problem: PathBuf,
-    /// Every evaluation as a CSV row (written whole at the end).
+    /// Every evaluation as a row: FILE.csv, or FILE.parquet/.pq (written whole at the end).
     #[arg(long, value_name = "FILE")]
     pub out: PathBuf,
     /// The best feasible design as a scene file that `cradle run` reproduces.

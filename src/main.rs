@@ -265,15 +265,14 @@ fn optimize(args: hertz_cradle::cli::OptimizeArgs) -> anyhow::Result<()> {
     hertz_cradle::engine::Solver::check_flags_against(&problem.base, &o, &problem.origin)?;
     let solver = hertz_cradle::engine::Solver::resolve(&problem.base, &o)?;
     problem.model.check_solver(&solver)?;
-    let csv_name = |p: &std::path::Path| p.extension().is_some_and(|e| e == "csv");
-    if !csv_name(&args.out) {
+    let Some(kind) = hertz_cradle::output::TableKind::from_extension(&args.out) else {
         return Err(InputError::Flag {
             flag: "--out".into(),
             value: args.out.display().to_string(),
-            allowed: "a name ending in .csv (the evaluations are written as CSV)".into(),
+            allowed: "a name ending in .csv, or .parquet/.pq".into(),
         }
         .into());
-    }
+    };
     let out = guard::output("--out", &args.out, &problem.inputs, ALONE_COMPANIONS)?;
     let best = args
         .best
@@ -323,14 +322,7 @@ fn optimize(args: hertz_cradle::cli::OptimizeArgs) -> anyhow::Result<()> {
             .install(work)?,
         None => work()?,
     };
-    write_alone(&out, |w| {
-        let mut h = csv::Writer::from_writer(&mut *w);
-        h.write_record(problem.header())?;
-        h.flush()?;
-        drop(h);
-        w.write_all(&fin.csv)?;
-        Ok(())
-    })?;
+    write_alone(&out, |w| problem.write_table(&fin.rows, kind, w))?;
     match (&fin.best, &best) {
         (Some(b), Some(path)) => {
             let text = toml::to_string(&b.spec)?;

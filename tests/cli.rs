@@ -1054,6 +1054,18 @@ fn optimize_is_deterministic_and_its_best_reproduces() {
         top,
         "the best file reproduces the best row"
     );
+    // As Parquet, by the name: the same table.
+    let pq = dir.path().join("one.parquet").display().to_string();
+    success(&["optimize", &problem, "--out", &pq, "--backend", "cpu"]);
+    let bytes = fs::read(&pq).unwrap();
+    assert!(bytes.starts_with(b"PAR1") && bytes.ends_with(b"PAR1"));
+    let e = bad_input(&[
+        "optimize",
+        &problem,
+        "--out",
+        &dir.path().join("x.txt").display().to_string(),
+    ]);
+    assert!(e.contains("--out") && e.contains(".parquet"), "{e}");
     // Bad problems.
     let bad = |text: &str| {
         let p = write(&dir, "bad.toml", text);

@@ -28,7 +28,9 @@ use crate::choice::Choice;
 use crate::engine::{Overrides, Status};
 use crate::error::{InputError, Source};
 use crate::model::Model;
-use crate::output::row::{self, Cell, Field};
+use crate::output::parquet_file;
+use crate::output::row::{self, Cell, ColType};
+use crate::output::TableKind;
 use crate::scene::{Scene, SceneSpec};
 use crate::sweep::axis::{self, Kind, Param, Value};
 use crate::sweep::design::{hash, unit_of};
@@ -485,6 +487,64 @@ impl Problem {
         h
     }
 
+    /// The type of each column, parallel to [`Problem::header`].
+    pub fn types(&self) -> Vec<ColType> {
+        let mut t = vec![ColType::Int, ColType::Int, ColType::Text];
+        t.extend(self.variables.iter().map(|v| match &v.domain {
+            Domain::Choices(c) if c.iter().any(|x| matches!(x, Value::Text(_))) => ColType::Text,
+            _ if v.param.kind == Kind::Integer => ColType::Int,
+            _ => ColType::Num,
+        }));
+        t.push(ColType::Num);
+        t.extend(self.model.types());
+        t
+    }
+
+    /// The evaluation table, header and `rows`, as CSV or Parquet to `w`.
+    pub fn write_table<W: std::io::Write + Send>(
+        &self,
+        rows: &[Vec<Cell>],
+        kind: TableKind,
+        w: W,
+    ) -> anyhow::Result<()> {
+        match kind {
+            TableKind::Csv => {
+                let mut w = w;
+                let mut h = csv::Writer::from_writer(&mut w);
+                h.write_record(self.header())?;
+                h.flush()?;
+                drop(h);
+                let (mut line, mut scratch) = (Vec::new(), String::new());
+                for r in rows {
+                    line.clear();
+                    for (i, c) in r.iter().enumerate() {
+                        if i > 0 {
+                            line.push(b',');
+                        }
+                        row::push_csv_field(&mut line, row::field_text(c.field(), &mut scratch));
+                    }
+                    line.push(b'\n');
+                    w.write_all(&line)?;
+                }
+                w.flush()?;
+            }
+            TableKind::Parquet => {
+                let types = self.types();
+                let schema = parquet_file::schema(&self.header(), &types);
+                let mut cols = parquet_file::Columns::new(&schema, &types, rows.len());
+                rows.iter().flatten().for_each(|c| cols.push(c.field()));
+                let mut out = parquet::arrow::ArrowWriter::try_new(
+                    w,
+                    schema,
+                    Some(parquet_file::properties()),
+                )?;
+                out.write(&cols.finish()?)?;
+                out.close()?;
+            }
+        }
+        Ok(())
+    }
+
     /// The scene at coordinates `u` (one per variable, in [0, 1]).
     pub fn spec_at(&self, u: &[f64]) -> SceneSpec {
         let mut s = self.scene.clone();
@@ -555,9 +615,10 @@ pub struct Best {
     pub spec: SceneSpec,
 }
 
-/// A finished run: its rows (CSV, without the header) and its best design.
+/// A finished run: its rows (the table's cells, in [`Problem::header`]'s
+/// order) and its best design.
 pub struct Finished {
-    pub csv: Vec<u8>,
+    pub rows: Vec<Vec<Cell>>,
     pub best: Option<Best>,
     pub evaluations: u64,
     /// Seconds in the engine's batch runs, and in all.
@@ -580,7 +641,7 @@ pub fn run(
     let at = |c: &str| header.iter().position(|h| h == c);
     let obj_at = at(&p.objective.0);
     let sign = if p.objective.1 { -1.0 } else { 1.0 };
-    let (mut csv, mut scratch) = (Vec::new(), String::new());
+    let mut rows: Vec<Vec<Cell>> = Vec::with_capacity(p.generations as usize * lambda);
     let mut best: Option<Best> = None;
     let mut engine_s = 0.0;
     for g in 0..p.generations {
@@ -667,33 +728,23 @@ pub fn run(
                     spec: specs[k].clone(),
                 });
             }
-            let mut fields: Vec<Field> = vec![
-                Field::Int(g),
-                Field::Int(k as u64),
-                Field::Text(if feasible { "true" } else { "false" }),
+            let mut row: Vec<Cell> = vec![
+                Cell::Int(g),
+                Cell::Int(k as u64),
+                Cell::Text(feasible.to_string()),
             ];
-            let values: Vec<Value> = p
-                .variables
-                .iter()
-                .zip(&us[k])
-                .map(|(v, &u)| v.value(u))
-                .collect();
-            fields.extend(values.iter().map(|x| match x {
-                Value::Num(v) => Field::Num(*v),
-                Value::Text(t) => Field::Text(t),
-            }));
-            fields.push(Field::Num(total_mass));
-            let mut sep = false;
-            let mut push = |f: Field| {
-                if sep {
-                    csv.push(b',');
-                }
-                sep = true;
-                row::push_csv_field(&mut csv, row::field_text(f, &mut scratch));
-            };
-            fields.into_iter().for_each(&mut push);
-            outcomes.emit(k, &mut push);
-            csv.push(b'\n');
+            row.extend(
+                p.variables
+                    .iter()
+                    .zip(&us[k])
+                    .map(|(v, &u)| match v.value(u) {
+                        Value::Num(x) => Cell::Num(x),
+                        Value::Text(t) => Cell::Text(t),
+                    }),
+            );
+            row.push(Cell::Num(total_mass));
+            row.extend(cells);
+            rows.push(row);
         }
         if p.method == Method::CmaEs {
             let mut order: Vec<usize> = (0..lambda).collect();
@@ -714,7 +765,7 @@ pub fn run(
         });
     }
     Ok(Finished {
-        csv,
+        rows,
         best,
         evaluations: p.generations * lambda as u64,
         engine_s,

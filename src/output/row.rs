@@ -258,6 +258,16 @@ impl From<Field<'_>> for Cell {
 }
 
 impl Cell {
+    /// The cell as the field a table writes.
+    pub fn field(&self) -> Field<'_> {
+        match self {
+            Cell::Int(x) => Field::Int(*x),
+            Cell::Num(x) => Field::Num(*x),
+            Cell::Text(t) => Field::Text(t),
+            Cell::Null => Field::Null,
+        }
+    }
+
     /// The cell as a number, if it is one (an integer too).
     pub fn as_f64(&self) -> Option<f64> {
         match self {
