@@ -259,97 +259,50 @@ fn sweep(args: hertz_cradle::cli::SweepArgs) -> anyhow::Result<()> {
 /// any work; a line per generation on stderr; the table and the best
 /// design written whole at the end.
 fn optimize(args: hertz_cradle::cli::OptimizeArgs) -> anyhow::Result<()> {
-    use hertz_cradle::output::publish::{write_alone, ALONE_COMPANIONS};
+    use hertz_cradle::optimize::request::{OptimizeRequest, OptimizeSettings};
     let problem = hertz_cradle::optimize::Problem::load(&args.problem)?;
-    let o = args.solver.settings().overrides()?;
-    hertz_cradle::engine::Solver::check_flags_against(&problem.base, &o, &problem.origin)?;
-    let solver = hertz_cradle::engine::Solver::resolve(&problem.base, &o)?;
-    problem.model.check_solver(&solver)?;
-    let Some(kind) = hertz_cradle::output::TableKind::from_extension(&args.out) else {
-        return Err(InputError::Flag {
-            flag: "--out".into(),
-            value: args.out.display().to_string(),
-            allowed: "a name ending in .csv, or .parquet/.pq".into(),
-        }
-        .into());
+    let settings = OptimizeSettings {
+        backend: args.backend,
+        threads: args.threads,
+        solver: args.solver.settings(),
     };
-    let out = guard::output("--out", &args.out, &problem.inputs, ALONE_COMPANIONS)?;
-    let best = args
-        .best
-        .as_ref()
-        .map(|b| guard::output("--best", b, &problem.inputs, ALONE_COMPANIONS))
-        .transpose()?;
-    if best.as_ref() == Some(&out) {
-        return Err(InputError::Flag {
-            flag: "--best".into(),
-            value: out.display().to_string(),
-            allowed: "another file than --out".into(),
-        }
-        .into());
-    }
-    let threads = args
-        .threads
-        .map(hertz_cradle::request::threads)
-        .transpose()?;
-    let backend = hertz_cradle::backend::choose(args.backend, solver.precision)?;
-    let varied = hertz_cradle::model::Varied {
-        names: problem
-            .variables
-            .iter()
-            .map(|v| v.param.name.as_str())
-            .collect(),
-        balls: None,
-    };
-    backend.prepare(&problem.model.needs(&problem.base, &varied, &solver))?;
-    let work = || {
-        hertz_cradle::optimize::run(&problem, &*backend, &o, &mut |r| {
+    let req = OptimizeRequest::new(problem, &args.out, args.best.as_deref(), &settings)?;
+    let column = req.problem.objective.0.clone();
+    let s = req
+        .run(&mut |r| {
             let best = r
                 .best
                 .map_or("none feasible yet".to_string(), |b| format!("{b:e}"));
             eprintln!(
-                "cradle: generation {}/{}: {} evaluations, best {} {best}",
+                "cradle: generation {}/{}: {} evaluations, best {column} {best}",
                 r.generation + 1,
                 r.generations,
                 r.evaluations,
-                problem.objective.0
             );
         })
-    };
-    let fin = match threads {
-        Some(n) => rayon::ThreadPoolBuilder::new()
-            .num_threads(n)
-            .build()?
-            .install(work)?,
-        None => work()?,
-    };
-    write_alone(&out, |w| problem.write_table(&fin.rows, kind, w))?;
-    match (&fin.best, &best) {
-        (Some(b), Some(path)) => {
-            let text = toml::to_string(&b.spec)?;
-            write_alone(path, |w| Ok(w.write_all(text.as_bytes())?))?;
-            eprintln!(
-                "cradle: best design (generation {}, candidate {}) -> {}",
-                b.generation,
-                b.candidate,
-                path.display()
-            );
-        }
+        .map_err(|e| e.into_anyhow())?;
+    match (&s.best, &req.best) {
+        (Some(b), Some(path)) => eprintln!(
+            "cradle: best design (generation {}, candidate {}) -> {}",
+            b.generation,
+            b.candidate,
+            path.display()
+        ),
         (None, Some(path)) => {
             eprintln!("cradle: no feasible design: {} not written", path.display())
         }
         _ => {}
     }
     eprintln!(
-        "cradle: {} evaluations in {:.2} s ({:.1}% in the engine), backend {}: best {} = {} -> {}",
-        fin.evaluations,
-        fin.wall_s,
-        100.0 * fin.engine_s / fin.wall_s.max(1e-9),
-        backend.name(),
-        problem.objective.0,
-        fin.best
+        "cradle: {} evaluations in {:.2} s ({:.1}% in the engine), backend {}: best {column} = {} -> {}",
+        s.evaluations,
+        s.wall_s,
+        100.0 * s.engine_s / s.wall_s.max(1e-9),
+        s.backend,
+        s.best
             .as_ref()
             .map_or("none feasible".into(), |b| format!("{:e}", b.objective)),
-        out.display()
+        req.out.display()
     );
     Ok(())
 }

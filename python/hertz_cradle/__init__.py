@@ -30,7 +30,7 @@ import pyarrow.parquet as pq
 
 from . import _native
 
-__all__ = ["sweep", "run", "scenes", "__version__"]
+__all__ = ["sweep", "run", "optimize", "scenes", "__version__"]
 __version__: str = _native.__version__
 
 Spec = Union[str, "os.PathLike[str]", Mapping[str, Any]]
@@ -217,6 +217,55 @@ def run(
         if not want_trace:
             return outcome
         return outcome, pcsv.read_csv(trace_path)
+
+
+def optimize(
+    spec: Spec,
+    *,
+    backend: str = "auto",
+    precision: Optional[str] = None,
+    tolerance: Optional[float] = None,
+    method: Optional[str] = None,
+    model: Optional[str] = None,
+    threads: Optional[int] = None,
+    out: Optional[Union[str, "os.PathLike[str]"]] = None,
+    best: Optional[Union[str, "os.PathLike[str]"]] = None,
+) -> Tuple[pa.Table, Optional[str]]:
+    """Search for the best design (``cradle optimize``, docs/SPEC.md §10).
+
+    ``spec`` is a problem TOML file's path, TOML text, or a dict with the
+    TOML's structure (``{"scene": {...}, "variable": [{"name":
+    "radius[1..20]", "min": 0.002, "max": 0.008, "scale": "log"}],
+    "objective": {"minimize": "wall_right_peak_force"}, "optimizer":
+    {"evaluations": 1000, "seed": 1}}``). The other arguments are
+    ``cradle optimize``'s flags.
+
+    Returns ``(table, best_scene)``: every evaluation (``generation``,
+    ``candidate``, ``feasible``, each variable, ``total_mass``, the model's
+    outcome columns) typed as a sweep's table, and the best feasible design
+    as scene TOML text (``None`` if no candidate was feasible), which
+    :func:`run` and ``cradle run`` reproduce bit for bit. ``out`` and
+    ``best`` also write them to files (``out``: CSV or Parquet by the name).
+    """
+    path, text, is_json, name = _document(spec, "problem")
+    with tempfile.TemporaryDirectory(prefix="hertz_cradle_") as tmp:
+        target = os.fspath(out) if out is not None else os.path.join(tmp, "runs.parquet")
+        summary = _native.optimize(
+            path,
+            text,
+            is_json,
+            name,
+            os.getcwd(),
+            target,
+            best=None if best is None else os.fspath(best),
+            backend=backend,
+            precision=precision,
+            tolerance=None if tolerance is None else float(tolerance),
+            method=method,
+            model=model,
+            threads=None if threads is None else int(threads),
+        )
+        return _read_table(target, summary["columns"]), summary["best_scene"]
 
 
 def scenes() -> Dict[str, str]:

@@ -42,5 +42,23 @@ def run(
 ) -> Dict[str, Any]:
     """Run one scene; the outcome row as a dict."""
 
+def optimize(
+    path: Optional[str],
+    text: Optional[str],
+    json: bool,
+    name: str,
+    base_dir: str,
+    out: str,
+    *,
+    best: Optional[str] = None,
+    backend: str = "auto",
+    precision: Optional[str] = None,
+    tolerance: Optional[float] = None,
+    method: Optional[str] = None,
+    model: Optional[str] = None,
+    threads: Optional[int] = None,
+) -> Dict[str, Any]:
+    """Run an optimisation into ``out``; a summary with ``columns`` and ``best_scene``."""
+
 def scenes() -> List[Tuple[str, str]]:
     """The built-in scenes: (name, summary)."""

@@ -316,6 +316,89 @@ fn run(
     Ok(d.unbind())
 }
 
+/// Run an optimisation (`cradle optimize`): the problem file `path`, or
+/// `text` (TOML, or JSON when `json`) named `name`, whose relative
+/// `scene = "file"` is found from `base_dir`; the evaluations written to
+/// `out` (CSV or Parquet by the name), the best design to `best`.
+/// Runs off the GIL; returns a summary with `columns` and `best_scene`.
+#[pyfunction]
+#[pyo3(signature = (path, text, json, name, base_dir, out, *, best=None, backend="auto",
+    precision=None, tolerance=None, method=None, model=None, threads=None))]
+#[allow(clippy::too_many_arguments)]
+fn optimize(
+    py: Python<'_>,
+    path: Option<String>,
+    text: Option<String>,
+    json: bool,
+    name: &str,
+    base_dir: &str,
+    out: &str,
+    best: Option<String>,
+    backend: &str,
+    precision: Option<&str>,
+    tolerance: Option<f64>,
+    method: Option<&str>,
+    model: Option<&str>,
+    threads: Option<i64>,
+) -> PyResult<Py<PyDict>> {
+    use hertz_cradle::optimize::request::{OptimizeRequest, OptimizeSettings};
+    use hertz_cradle::optimize::Problem;
+    let input = |e: hertz_cradle::InputError| to_py(e.into());
+    let problem = match (path, text) {
+        (Some(p), _) => Problem::load(std::path::Path::new(&p)).map_err(input)?,
+        (None, Some(t)) => {
+            let t = if json { toml_from_json(name, &t)? } else { t };
+            Problem::parse(
+                &hertz_cradle::error::Source::new(name, &t),
+                std::path::Path::new(base_dir),
+            )
+            .map_err(input)?
+        }
+        (None, None) => {
+            return Err(PyValueError::new_err(
+                "an optimisation needs a path or a text",
+            ))
+        }
+    };
+    let settings = OptimizeSettings {
+        backend: BackendChoice::parse_flag("--backend", backend).map_err(input)?,
+        threads,
+        solver: solver(precision, tolerance, method, model)?,
+    };
+    let req = OptimizeRequest::new(
+        problem,
+        std::path::Path::new(out),
+        best.as_deref().map(std::path::Path::new),
+        &settings,
+    )
+    .map_err(input)?;
+    let columns: Vec<(String, &str)> = req
+        .problem
+        .header()
+        .into_iter()
+        .zip(req.problem.types())
+        .map(|(n, t)| (n, type_name(t)))
+        .collect();
+    let summary = py
+        .detach(|| std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| req.run(&mut |_| {}))))
+        .map_err(|_| PyRuntimeError::new_err("the optimisation panicked"))?
+        .map_err(to_py)?;
+    let d = PyDict::new(py);
+    d.set_item("columns", columns)?;
+    d.set_item("evaluations", summary.evaluations)?;
+    d.set_item("wall_s", summary.wall_s)?;
+    d.set_item("engine_s", summary.engine_s)?;
+    d.set_item("backend", summary.backend)?;
+    d.set_item("best_objective", summary.best.as_ref().map(|b| b.objective))?;
+    d.set_item(
+        "best_generation",
+        summary.best.as_ref().map(|b| b.generation),
+    )?;
+    d.set_item("best_candidate", summary.best.as_ref().map(|b| b.candidate))?;
+    d.set_item("best_scene", summary.best_toml)?;
+    Ok(d.unbind())
+}
+
 /// The built-in scenes: (name, summary) pairs.
 #[pyfunction]
 fn scenes(py: Python<'_>) -> PyResult<Bound<'_, PyList>> {
@@ -327,6 +410,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     hertz_cradle::backend::gpu::quiet_mesa_without_session();
     m.add_function(wrap_pyfunction!(sweep, m)?)?;
     m.add_function(wrap_pyfunction!(run, m)?)?;
+    m.add_function(wrap_pyfunction!(optimize, m)?)?;
     m.add_function(wrap_pyfunction!(scenes, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())

@@ -282,3 +282,32 @@ def test_sobol_points_have_lower_discrepancy_than_random_ones():
     # The same points as scipy's unscrambled Sobol sequence (Joe & Kuo).
     ref = qmc.Sobol(d=2, scramble=False).random(1024)
     assert np.allclose(sob, ref, atol=1e-9)
+
+
+def test_optimize_writes_the_clis_bytes_and_its_best_scene_runs_again(tmp_path):
+    problem = {
+        "scene": {"balls": 3, "velocity": [1.0, 0, 0]},
+        "variable": [{"name": "mass[1..2]", "min": 0.01, "max": 1.0, "scale": "log"}],
+        "objective": {"maximize": "v_2"},
+        "optimizer": {"population": 6, "evaluations": 36, "seed": 2},
+    }
+    table, best = hc.optimize(problem, backend="cpu", out=tmp_path / "py.csv")
+    assert table.num_rows == 36
+    assert table.column_names[:4] == ["generation", "candidate", "feasible", "mass[1]"]
+    # The command line on the same problem (as TOML) writes the same bytes.
+    toml = tmp_path / "p.toml"
+    toml.write_text(
+        '[scene]\nballs = 3\nvelocity = [1.0, 0, 0]\n'
+        '[[variable]]\nname = "mass[1..2]"\nmin = 0.01\nmax = 1.0\nscale = "log"\n'
+        '[objective]\nmaximize = "v_2"\n'
+        '[optimizer]\npopulation = 6\nevaluations = 36\nseed = 2\n'
+    )
+    r = cli("optimize", toml, "--out", tmp_path / "cli.csv", "--backend", "cpu")
+    assert r.returncode == 0, r.stderr
+    assert (tmp_path / "py.csv").read_bytes() == (tmp_path / "cli.csv").read_bytes()
+    # The best scene is the best feasible row, run again.
+    rows = table.to_pylist()
+    top = max(r["v_2"] for r in rows if r["feasible"] == "true")
+    assert hc.run(best)["v_2"] == top
+    with pytest.raises(ValueError, match="objective"):
+        hc.optimize({**problem, "objective": {"maximize": "v_9"}}, backend="cpu")

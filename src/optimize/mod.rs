@@ -16,6 +16,7 @@
 //! constraints, then the failed runs.
 
 pub mod cmaes;
+pub mod request;
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
