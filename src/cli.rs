@@ -235,6 +235,10 @@ pub struct OptimizeArgs {
     /// Worker threads for the CPU backend [default: all cores].
     #[arg(long, allow_negative_numbers = true)]
     pub threads: Option<i64>,
+    /// Continue an interrupted run from FILE.partial (the generations it
+    /// finished are replayed, not run again: the same result as one run).
+    #[arg(long)]
+    pub resume: bool,
     #[command(flatten)]
     pub solver: SolverFlags,
 }

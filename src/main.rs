@@ -265,22 +265,35 @@ fn optimize(args: hertz_cradle::cli::OptimizeArgs) -> anyhow::Result<()> {
         backend: args.backend,
         threads: args.threads,
         solver: args.solver.settings(),
+        resume: args.resume,
     };
     let req = OptimizeRequest::new(problem, &args.out, args.best.as_deref(), &settings)?;
     let column = req.problem.objective.0.clone();
-    let s = req
-        .run(&mut |r| {
-            let best = r
-                .best
-                .map_or("none feasible yet".to_string(), |b| format!("{b:e}"));
+    let generations = std::sync::atomic::AtomicU64::new(0);
+    let run = req.run(Some(stop_on_signal()), &mut |r| {
+        generations.store(r.generation + 1, std::sync::atomic::Ordering::SeqCst);
+        let best = r
+            .best
+            .map_or("none feasible yet".to_string(), |b| format!("{b:e}"));
+        eprintln!(
+            "cradle: generation {}/{}: {} evaluations, best {column} {best}",
+            r.generation + 1,
+            r.generations,
+            r.evaluations,
+        );
+    });
+    let s = match run {
+        Err(hertz_cradle::request::Error::Interrupted) => {
             eprintln!(
-                "cradle: generation {}/{}: {} evaluations, best {column} {best}",
-                r.generation + 1,
-                r.generations,
-                r.evaluations,
+                "cradle: interrupted: {} of {} generations are kept in {}.partial; run the same command with --resume to continue (without --resume a rerun starts over)",
+                generations.load(std::sync::atomic::Ordering::SeqCst),
+                req.problem.generations,
+                req.out.display()
             );
-        })
-        .map_err(|e| e.into_anyhow())?;
+            return Err(hertz_cradle::error::Interrupted.into());
+        }
+        r => r.map_err(|e| e.into_anyhow())?,
+    };
     match (&s.best, &req.best) {
         (Some(b), Some(path)) => eprintln!(
             "cradle: best design (generation {}, candidate {}) -> {}",

@@ -1066,6 +1066,60 @@ fn optimize_is_deterministic_and_its_best_reproduces() {
         &dir.path().join("x.txt").display().to_string(),
     ]);
     assert!(e.contains("--out") && e.contains(".parquet"), "{e}");
+    // A run stopped by a full disk at its 5th generation keeps 4 in
+    // FILE.partial; a cut-off line after them (a kill mid-write) is
+    // dropped; --resume replays them and writes the uninterrupted bytes.
+    let cut = dir.path().join("cut.csv").display().to_string();
+    let out = cradle()
+        .args(["optimize", &problem, "--out", &cut, "--backend", "cpu"])
+        .env("CRADLE_FAILPOINT", "generation:5")
+        .output()
+        .unwrap();
+    assert_eq!(
+        out.status.code(),
+        Some(1),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let partial = format!("{cut}.partial");
+    let kept = fs::read_to_string(&partial).unwrap();
+    assert_eq!(
+        kept.lines().count(),
+        2 + 4 * 8,
+        "a fingerprint, a header, 4 generations"
+    );
+    assert!(!std::path::Path::new(&cut).exists());
+    fs::write(&partial, format!("{kept}4,0,tr")).unwrap();
+    let e = bad_input(&[
+        "optimize",
+        &problem,
+        "--out",
+        &cut,
+        "--backend",
+        "cpu",
+        "--resume",
+        "--precision",
+        "f32",
+    ]);
+    assert!(e.contains("--resume") && e.contains("another run"), "{e}");
+    success(&[
+        "optimize",
+        &problem,
+        "--out",
+        &cut,
+        "--backend",
+        "cpu",
+        "--resume",
+    ]);
+    assert_eq!(
+        fs::read_to_string(&cut).unwrap(),
+        one,
+        "resumed ≠ uninterrupted"
+    );
+    assert!(
+        !std::path::Path::new(&partial).exists(),
+        "the partial file is removed at the end"
+    );
     // Bad problems.
     let bad = |text: &str| {
         let p = write(&dir, "bad.toml", text);

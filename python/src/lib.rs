@@ -364,6 +364,7 @@ fn optimize(
         backend: BackendChoice::parse_flag("--backend", backend).map_err(input)?,
         threads,
         solver: solver(precision, tolerance, method, model)?,
+        resume: false,
     };
     let req = OptimizeRequest::new(
         problem,
@@ -380,7 +381,9 @@ fn optimize(
         .map(|(n, t)| (n, type_name(t)))
         .collect();
     let summary = py
-        .detach(|| std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| req.run(&mut |_| {}))))
+        .detach(|| {
+            std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| req.run(None, &mut |_| {})))
+        })
         .map_err(|_| PyRuntimeError::new_err("the optimisation panicked"))?
         .map_err(to_py)?;
     let d = PyDict::new(py);

@@ -627,25 +627,69 @@ pub struct Finished {
     pub wall_s: f64,
 }
 
-/// Run the problem on `backend`; `report` is told after every generation.
+/// A row's verdict: feasible, its rank key (lower first: feasible rows by
+/// the objective, then rows that miss a constraint by how far, then failed
+/// runs) and its objective.
+fn judge(p: &Problem, row: &[Cell]) -> (bool, (u8, f64), f64) {
+    let lead = LEAD.len() + p.variables.len();
+    let total_mass = row[lead].as_f64().unwrap_or(f64::NAN);
+    let header = p.model.header();
+    let cell = |c: &str| -> f64 {
+        if c == "total_mass" {
+            return total_mass;
+        }
+        header
+            .iter()
+            .position(|h| h == c)
+            .and_then(|i| row[lead + 1 + i].as_f64())
+            .unwrap_or(f64::NAN)
+    };
+    let ok = header
+        .iter()
+        .position(|h| h == "status")
+        .is_some_and(|i| row[lead + 1 + i] == Cell::Text(Status::Ok.name().into()));
+    let objective = cell(&p.objective.0);
+    let miss: f64 = p.constraints.iter().map(|c| c.miss(cell(&c.lhs))).sum();
+    let feasible = ok && miss == 0.0 && objective.is_finite();
+    let sign = if p.objective.1 { -1.0 } else { 1.0 };
+    let key = if feasible {
+        (0, sign * objective)
+    } else if ok {
+        (1, miss)
+    } else {
+        (2, 0.0)
+    };
+    (feasible, key, objective)
+}
+
+/// Run the problem on `backend`. `earlier`: the rows of the generations a
+/// previous run of the same problem finished (`--resume`), replayed, not
+/// run again; `sink` is given each new generation's rows once they are
+/// known; `report` is told after every generation; `cancel` stops the run
+/// between generations (`error::Interrupted`).
 pub fn run(
     p: &Problem,
     backend: &dyn Backend,
     o: &Overrides,
+    earlier: Vec<Vec<Cell>>,
+    sink: &mut dyn FnMut(&[Vec<Cell>]) -> anyhow::Result<()>,
+    cancel: Option<&std::sync::atomic::AtomicBool>,
     report: &mut dyn FnMut(&Report),
 ) -> anyhow::Result<Finished> {
     let t0 = Instant::now();
     let n = p.variables.len();
     let lambda = p.population;
     let mut es = cmaes::Cmaes::new(vec![0.5; n], 0.3, lambda, p.seed);
-    let header = p.model.header();
-    let at = |c: &str| header.iter().position(|h| h == c);
-    let obj_at = at(&p.objective.0);
     let sign = if p.objective.1 { -1.0 } else { 1.0 };
+    let replayed = (earlier.len() / lambda) as u64;
+    let mut earlier = earlier.into_iter();
     let mut rows: Vec<Vec<Cell>> = Vec::with_capacity(p.generations as usize * lambda);
     let mut best: Option<Best> = None;
     let mut engine_s = 0.0;
     for g in 0..p.generations {
+        if g >= replayed && cancel.is_some_and(|c| c.load(std::sync::atomic::Ordering::SeqCst)) {
+            return Err(crate::error::Interrupted.into());
+        }
         let xs: Vec<Vec<f64>> = match p.method {
             Method::CmaEs => es.ask(),
             Method::Random => (0..lambda)
@@ -661,62 +705,59 @@ pub fn run(
             .map(|x| x.iter().map(|&v| mirror(v)).collect())
             .collect();
         let specs: Vec<SceneSpec> = us.iter().map(|u| p.spec_at(u)).collect();
-        // A candidate whose values make no valid scene of the model: `invalid`.
-        let scenes: Vec<Option<Scene>> = specs
-            .iter()
-            .map(|s| {
-                s.validate()
-                    .ok()
-                    .filter(|sc| crate::model::kind(sc) == crate::model::kind(&p.base))
-            })
-            .collect();
-        let scene_at = |k: usize| {
-            scenes[k].clone().ok_or_else(|| InputError::Data {
-                path: PathBuf::from(&p.origin),
-                what: format!("candidate {k}: no valid scene"),
-            })
-        };
-        let te = Instant::now();
-        let mut built = te;
-        let outcomes = p.model.run(
-            backend,
-            lambda,
-            &scene_at,
-            o,
-            p.model.takes_error_estimate(),
-            &mut built,
-        )?;
-        engine_s += te.elapsed().as_secs_f64();
-        // Each row's cells, its rank key and the row's text.
+        let mut new: Vec<Vec<Cell>> =
+            if g < replayed {
+                earlier.by_ref().take(lambda).collect()
+            } else {
+                // A candidate whose values make no valid scene of the model: `invalid`.
+                let scenes: Vec<Option<Scene>> = specs
+                    .iter()
+                    .map(|s| {
+                        s.validate()
+                            .ok()
+                            .filter(|sc| crate::model::kind(sc) == crate::model::kind(&p.base))
+                    })
+                    .collect();
+                let scene_at = |k: usize| {
+                    scenes[k].clone().ok_or_else(|| InputError::Data {
+                        path: PathBuf::from(&p.origin),
+                        what: format!("candidate {k}: no valid scene"),
+                    })
+                };
+                let te = Instant::now();
+                let mut built = te;
+                let outcomes = p.model.run(
+                    backend,
+                    lambda,
+                    &scene_at,
+                    o,
+                    p.model.takes_error_estimate(),
+                    &mut built,
+                )?;
+                engine_s += te.elapsed().as_secs_f64();
+                (0..lambda)
+                    .map(|k| {
+                        let mut row: Vec<Cell> =
+                            vec![Cell::Int(g), Cell::Int(k as u64), Cell::Null];
+                        row.extend(p.variables.iter().zip(&us[k]).map(
+                            |(v, &u)| match v.value(u) {
+                                Value::Num(x) => Cell::Num(x),
+                                Value::Text(t) => Cell::Text(t),
+                            },
+                        ));
+                        row.push(Cell::Num(
+                            scenes[k].as_ref().map_or(f64::NAN, |s| s.mass.iter().sum()),
+                        ));
+                        outcomes.emit(k, &mut |f| row.push(Cell::from(f)));
+                        row
+                    })
+                    .collect()
+            };
         let mut keys = Vec::with_capacity(lambda);
-        for k in 0..lambda {
-            let mut cells: Vec<Cell> = Vec::with_capacity(header.len());
-            outcomes.emit(k, &mut |f| cells.push(Cell::from(f)));
-            let num = |c: Option<usize>| c.and_then(|c| cells[c].as_f64()).unwrap_or(f64::NAN);
-            let total_mass = scenes[k].as_ref().map_or(f64::NAN, |s| s.mass.iter().sum());
-            let value_of = |c: &str| {
-                if c == "total_mass" {
-                    total_mass
-                } else {
-                    num(at(c))
-                }
-            };
-            let objective = if p.objective.0 == "total_mass" {
-                total_mass
-            } else {
-                num(obj_at)
-            };
-            let miss: f64 = p.constraints.iter().map(|c| c.miss(value_of(&c.lhs))).sum();
-            let ok = outcomes.status(k) == Status::Ok;
-            let feasible = ok && miss == 0.0 && objective.is_finite();
-            // Rank: feasible by objective, then by how far they miss, then failed runs.
-            keys.push(if feasible {
-                (0u8, sign * objective)
-            } else if ok {
-                (1, miss)
-            } else {
-                (2, 0.0)
-            });
+        for (k, row) in new.iter_mut().enumerate() {
+            let (feasible, key, objective) = judge(p, row);
+            row[2] = Cell::Text(feasible.to_string());
+            keys.push(key);
             if feasible
                 && best
                     .as_ref()
@@ -729,24 +770,11 @@ pub fn run(
                     spec: specs[k].clone(),
                 });
             }
-            let mut row: Vec<Cell> = vec![
-                Cell::Int(g),
-                Cell::Int(k as u64),
-                Cell::Text(feasible.to_string()),
-            ];
-            row.extend(
-                p.variables
-                    .iter()
-                    .zip(&us[k])
-                    .map(|(v, &u)| match v.value(u) {
-                        Value::Num(x) => Cell::Num(x),
-                        Value::Text(t) => Cell::Text(t),
-                    }),
-            );
-            row.push(Cell::Num(total_mass));
-            row.extend(cells);
-            rows.push(row);
         }
+        if g >= replayed {
+            sink(&new)?;
+        }
+        rows.extend(new);
         if p.method == Method::CmaEs {
             let mut order: Vec<usize> = (0..lambda).collect();
             order.sort_by(|&a, &b| {

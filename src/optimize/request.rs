@@ -8,7 +8,8 @@ use super::{Best, Finished, Problem, Report};
 use crate::backend::{self, BackendChoice};
 use crate::engine::{Overrides, Solver};
 use crate::error::{flag, InputError};
-use crate::output::publish::{write_alone, ALONE_COMPANIONS};
+use crate::output::publish::{write_alone, write_with};
+use crate::output::row::Cell;
 use crate::output::{guard, TableKind};
 use crate::request::{Error, SolverSettings};
 
@@ -19,6 +20,8 @@ pub struct OptimizeSettings {
     /// Worker threads for the CPU backend (default: all cores).
     pub threads: Option<i64>,
     pub solver: SolverSettings,
+    /// Continue an interrupted run from `OUT.partial`.
+    pub resume: bool,
 }
 
 impl Default for OptimizeSettings {
@@ -27,9 +30,17 @@ impl Default for OptimizeSettings {
             backend: BackendChoice::Auto,
             threads: None,
             solver: SolverSettings::default(),
+            resume: false,
         }
     }
 }
+
+/// The suffix of the file an optimisation appends its generations to.
+pub const PARTIAL: &str = ".partial";
+
+/// What an output of an optimisation may not be beside: its partial file,
+/// the temporary file of the final write, the lock.
+const COMPANIONS: &[&str] = &[PARTIAL, crate::output::publish::TMP, ".lock"];
 
 /// A checked optimisation: nothing has run yet.
 #[derive(Debug)]
@@ -44,6 +55,7 @@ pub struct OptimizeRequest {
     threads: Option<usize>,
     overrides: Overrides,
     solver: Solver,
+    resume: bool,
 }
 
 /// What a run did.
@@ -58,6 +70,21 @@ pub struct OptimizeSummary {
     pub best: Option<Best>,
     /// The best design as scene TOML (what `best` holds).
     pub best_toml: Option<String>,
+}
+
+/// A row as a CSV line, appended to `out`.
+fn csv_row(row: &[Cell], out: &mut Vec<u8>) {
+    let mut scratch = String::new();
+    for (i, c) in row.iter().enumerate() {
+        if i > 0 {
+            out.push(b',');
+        }
+        crate::output::row::push_csv_field(
+            out,
+            crate::output::row::field_text(c.field(), &mut scratch),
+        );
+    }
+    out.push(b'\n');
 }
 
 impl OptimizeRequest {
@@ -80,9 +107,9 @@ impl OptimizeRequest {
                 "a name ending in .csv, or .parquet/.pq",
             ));
         };
-        let out = guard::output("--out", out, &problem.inputs, ALONE_COMPANIONS)?;
+        let out = guard::output("--out", out, &problem.inputs, COMPANIONS)?;
         let best = best
-            .map(|b| guard::output("--best", b, &problem.inputs, ALONE_COMPANIONS))
+            .map(|b| guard::output("--best", b, &problem.inputs, COMPANIONS))
             .transpose()?;
         if best.as_ref() == Some(&out) {
             return Err(flag(
@@ -101,12 +128,88 @@ impl OptimizeRequest {
             threads,
             overrides,
             solver,
+            resume: settings.resume,
         })
+    }
+
+    /// What a resumed run must share with the run it continues: the
+    /// problem as resolved, the flags and the version (CRC-32, hex).
+    fn fingerprint(&self) -> String {
+        let p = &self.problem;
+        let text = format!(
+            "{:?}|{:?}|{:?}|{:?}|{:?}|{}|{}|{}|{:?}|{}",
+            p.scene,
+            p.variables,
+            p.objective,
+            p.constraints,
+            p.method,
+            p.population,
+            p.generations,
+            p.seed,
+            self.overrides,
+            env!("CARGO_PKG_VERSION")
+        );
+        format!("{:08x}", crc32fast::hash(text.as_bytes()))
+    }
+
+    /// The rows of the whole generations `partial` holds (a torn last row
+    /// and an unfinished generation dropped), checked to be this run's.
+    fn earlier(&self, partial: &Path, first: &str) -> Result<Vec<Vec<Cell>>, InputError> {
+        let text = std::fs::read_to_string(partial).map_err(|error| InputError::Read {
+            path: partial.to_path_buf(),
+            error,
+        })?;
+        let mut lines = text.splitn(2, '\n');
+        if lines.next() != Some(first) {
+            return Err(flag(
+                "--resume",
+                &partial.display().to_string(),
+                "the partial file of the same problem, flags and version (this one is another run's: remove it, or run without --resume to start over)",
+            ));
+        }
+        let types = self.problem.types();
+        // Only whole lines: a kill mid-write leaves a cut-off last line.
+        let body = lines.next().unwrap_or("");
+        let body = &body[..body.rfind('\n').map_or(0, |i| i + 1)];
+        let mut r = csv::ReaderBuilder::new()
+            .flexible(true)
+            .from_reader(body.as_bytes());
+        let header_ok = r.headers().is_ok_and(|h| {
+            h.iter()
+                .eq(self.problem.header().iter().map(String::as_str))
+        });
+        if !header_ok {
+            return Err(flag(
+                "--resume",
+                &partial.display().to_string(),
+                "a partial file with this problem's columns",
+            ));
+        }
+        let mut rows = vec![];
+        for rec in r.records() {
+            let Ok(rec) = rec else { break };
+            if rec.len() != types.len() {
+                break;
+            }
+            rows.push(
+                rec.iter()
+                    .zip(&types)
+                    .map(|(f, &t)| Cell::parse(f, t))
+                    .collect::<Vec<_>>(),
+            );
+        }
+        let lambda = self.problem.population;
+        rows.truncate(rows.len() / lambda * lambda);
+        Ok(rows)
     }
 
     /// Run it (`report` told after each generation), write the table and
     /// the best design (when there is a feasible one).
-    pub fn run(&self, report: &mut (dyn FnMut(&Report) + Send)) -> Result<OptimizeSummary, Error> {
+    pub fn run(
+        &self,
+        cancel: Option<std::sync::Arc<std::sync::atomic::AtomicBool>>,
+        report: &mut (dyn FnMut(&Report) + Send),
+    ) -> Result<OptimizeSummary, Error> {
         let p = &self.problem;
         let backend = backend::choose(self.backend, self.solver.precision).map_err(Error::from)?;
         let varied = crate::model::Varied {
@@ -117,7 +220,49 @@ impl OptimizeRequest {
             .prepare(&p.model.needs(&p.base, &varied, &self.solver))
             .map_err(Error::from)?;
         let (b, o): (&dyn crate::backend::Backend, &Overrides) = (&*backend, &self.overrides);
-        let mut work = move || super::run(p, b, o, report);
+        // One writer for the whole run; its generations appended to
+        // OUT.partial as they finish (what --resume continues).
+        let _lock = crate::output::lock::OutputLock::acquire(&self.out).map_err(Error::from)?;
+        let partial = guard::with_suffix(&self.out, PARTIAL);
+        let first = format!(
+            "# cradle optimize partial, fingerprint {}",
+            self.fingerprint()
+        );
+        let earlier = if self.resume && partial.exists() {
+            self.earlier(&partial, &first)?
+        } else {
+            vec![]
+        };
+        let mut text = format!("{first}\n");
+        {
+            let mut h = csv::Writer::from_writer(Vec::new());
+            h.write_record(p.header())
+                .map_err(|e| Error::Runtime(e.into()))?;
+            text.push_str(&String::from_utf8_lossy(
+                &h.into_inner()
+                    .map_err(|e| Error::Runtime(anyhow::anyhow!("{e}")))?,
+            ));
+        }
+        let mut kept = text.into_bytes();
+        earlier.iter().for_each(|r| csv_row(r, &mut kept));
+        write_with(&partial, |w| Ok(std::io::Write::write_all(w, &kept)?)).map_err(Error::from)?;
+        let mut file = std::fs::OpenOptions::new()
+            .append(true)
+            .open(&partial)
+            .map_err(|e| {
+                Error::Runtime(anyhow::anyhow!("cannot open {}: {e}", partial.display()))
+            })?;
+        let mut sink = |rows: &[Vec<Cell>]| -> anyhow::Result<()> {
+            use std::io::Write;
+            crate::output::failpoint::check("generation")?;
+            let mut bytes = vec![];
+            rows.iter().for_each(|r| csv_row(r, &mut bytes));
+            file.write_all(&bytes)?;
+            file.sync_data()?;
+            Ok(())
+        };
+        let cancel = cancel.as_deref();
+        let work = move || super::run(p, b, o, earlier, &mut sink, cancel, report);
         let fin: Finished = match self.threads {
             Some(n) => rayon::ThreadPoolBuilder::new()
                 .num_threads(n)
@@ -127,8 +272,8 @@ impl OptimizeRequest {
             None => work(),
         }
         .map_err(Error::from)?;
-        write_alone(&self.out, |w| p.write_table(&fin.rows, self.format, w))
-            .map_err(Error::from)?;
+        write_with(&self.out, |w| p.write_table(&fin.rows, self.format, w)).map_err(Error::from)?;
+        let _ = std::fs::remove_file(&partial);
         let best_toml = fin
             .best
             .as_ref()

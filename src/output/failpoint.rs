@@ -4,7 +4,8 @@
 //! device", as a full disk would. Unset (every normal run), a failpoint costs
 //! one load of a cached `None`. Names: `append` (a batch of rows reaching the
 //! `.partial`), `sidecar` (the sidecar, before the CSV is renamed),
-//! `publish` (any finished file, before it is renamed over its name).
+//! `publish` (any finished file, before it is renamed over its name),
+//! `generation` (an optimisation's generation reaching its `.partial`).
 
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::OnceLock;
