@@ -1044,6 +1044,20 @@ fn optimize_is_deterministic_and_its_best_reproduces() {
         .iter()
         .map(|r| r[col("v_2")].parse::<f64>().unwrap())
         .fold(f64::NEG_INFINITY, f64::max);
+    // Generation 0's candidate 0 is the base design itself.
+    let base = write(&dir, "base.toml", "balls = 3\nvelocity = [1.0, 0, 0]\n");
+    let b = success(&["run", &base, "--format", "csv"]);
+    let mut br = csv::Reader::from_reader(&b[..]);
+    let bh = br.headers().unwrap().clone();
+    let bv2: f64 = br.records().next().unwrap().unwrap()
+        [bh.iter().position(|x| x == "v_2").unwrap()]
+    .parse()
+    .unwrap();
+    let v2_0: f64 = recs[0][col("v_2")].parse().unwrap();
+    assert!(
+        (v2_0 - bv2).abs() <= 1e-12 * bv2.abs(),
+        "{v2_0} vs the base's {bv2}"
+    );
     let run = success(&["run", &best, "--format", "csv"]);
     let mut rr = csv::Reader::from_reader(&run[..]);
     let h = rr.headers().unwrap().clone();

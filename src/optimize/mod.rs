@@ -75,6 +75,24 @@ pub struct Variable {
 }
 
 impl Variable {
+    /// The coordinate of `x`, if it is a value this variable takes.
+    pub fn coordinate(&self, x: &Value) -> Option<f64> {
+        match (&self.domain, x) {
+            (Domain::Range { min, max, log }, Value::Num(x)) if (*min..=*max).contains(x) => {
+                Some(if *log {
+                    (x.ln() - min.ln()) / (max.ln() - min.ln())
+                } else {
+                    (x - min) / (max - min)
+                })
+            }
+            (Domain::Choices(c), x) => c
+                .iter()
+                .position(|v| v == x)
+                .map(|i| (i as f64 + 0.5) / c.len() as f64),
+            _ => None,
+        }
+    }
+
     /// The value at coordinate `u` ∈ [0, 1].
     pub fn value(&self, u: f64) -> Value {
         match &self.domain {
@@ -93,6 +111,34 @@ impl Variable {
             }
             Domain::Choices(c) => c[((u * c.len() as f64) as usize).min(c.len() - 1)].clone(),
         }
+    }
+}
+
+/// The base scene's value of a per-ball key (`mass[2]`; a key without an
+/// index when every ball has the same), `glue` or `balls`; `None` for the
+/// others.
+fn base_value(base: &Scene, p: &Param) -> Option<Value> {
+    let per = |v: &[f64]| -> Option<Value> {
+        match p.index {
+            Some(i) => v.get(i).map(|&x| Value::Num(x)),
+            None => v.iter().all(|&x| x == v[0]).then(|| Value::Num(v[0])),
+        }
+    };
+    match p.name.as_str() {
+        "radius" => per(&base.radius),
+        "mass" => per(&base.mass),
+        "young_modulus" => per(&base.young_modulus),
+        "poisson_ratio" => per(&base.poisson_ratio),
+        "velocity" => per(&base.velocity),
+        "gap" => per(&base.gap),
+        "glue" => Some(Value::Text(
+            base.glue
+                .iter()
+                .map(|&g| if g { '=' } else { '-' })
+                .collect(),
+        )),
+        "balls" => Some(Value::Num(base.n as f64)),
+        _ => None,
     }
 }
 
@@ -546,6 +592,20 @@ impl Problem {
         Ok(())
     }
 
+    /// The coordinates of the base scene's own values, where the base scene
+    /// has one a variable can take (else the cube's centre): where the
+    /// search starts, and generation 0's candidate 0.
+    pub fn base_coordinates(&self) -> Vec<f64> {
+        self.variables
+            .iter()
+            .map(|v| {
+                base_value(&self.base, &v.param)
+                    .and_then(|x| v.coordinate(&x))
+                    .unwrap_or(0.5)
+            })
+            .collect()
+    }
+
     /// The scene at coordinates `u` (one per variable, in [0, 1]).
     pub fn spec_at(&self, u: &[f64]) -> SceneSpec {
         let mut s = self.scene.clone();
@@ -679,7 +739,8 @@ pub fn run(
     let t0 = Instant::now();
     let n = p.variables.len();
     let lambda = p.population;
-    let mut es = cmaes::Cmaes::new(vec![0.5; n], 0.3, lambda, p.seed);
+    let start = p.base_coordinates();
+    let mut es = cmaes::Cmaes::new(start.clone(), 0.3, lambda, p.seed);
     let sign = if p.objective.1 { -1.0 } else { 1.0 };
     let replayed = (earlier.len() / lambda) as u64;
     let mut earlier = earlier.into_iter();
@@ -690,7 +751,7 @@ pub fn run(
         if g >= replayed && cancel.is_some_and(|c| c.load(std::sync::atomic::Ordering::SeqCst)) {
             return Err(crate::error::Interrupted.into());
         }
-        let xs: Vec<Vec<f64>> = match p.method {
+        let mut xs: Vec<Vec<f64>> = match p.method {
             Method::CmaEs => es.ask(),
             Method::Random => (0..lambda)
                 .map(|k| {
@@ -700,6 +761,10 @@ pub fn run(
                 })
                 .collect(),
         };
+        if g == 0 {
+            // The base design is a candidate.
+            xs[0] = start.clone();
+        }
         let us: Vec<Vec<f64>> = xs
             .iter()
             .map(|x| x.iter().map(|&v| mirror(v)).collect())
