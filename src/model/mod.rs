@@ -36,8 +36,9 @@ use crate::scene::Scene;
 /// status `invalid`). Built by the worker about to run it.
 pub type SceneAt<'a> = &'a (dyn Fn(usize) -> Result<Scene, InputError> + Sync);
 
-/// What a sweep varies, as a model needs it to say what its scenes ask of a
-/// backend ([`Model::needs`]).
+/// What a sweep (or an optimisation) varies, as a model needs it: to size
+/// its table ([`of`]) and to say what its scenes ask of a backend
+/// ([`Model::needs`]).
 pub struct Varied<'a> {
     /// The parameter names of the axes.
     pub names: Vec<&'a str>,
@@ -147,9 +148,13 @@ impl RowOutcome {
     }
 }
 
-/// The model of a sweep whose base scene is `base`, whose chains have at
-/// most `width` balls, and whose scenes hang on strings when `pendulum`.
-pub fn of(base: &Scene, width: usize, pendulum: bool) -> Arc<dyn Model> {
+/// The model of a sweep whose base scene is `base` and which varies
+/// `varied`: its table is as wide as its longest chain (the base scene's, or
+/// a `balls` value's), and a cradle's has displacement columns when its
+/// scenes hang on strings (`[pendulum]`, or a `length`/`gravity` key varied).
+pub fn of(base: &Scene, varied: &Varied) -> Arc<dyn Model> {
+    let width = varied.balls.map_or(base.n, |span| span.1.max(base.n));
+    let pendulum = base.pendulum.is_some() || varied.any(&["length", "gravity"]);
     match &base.chain {
         Some(c) => Arc::new(granular::Granular::new(c.probes.clone(), width)),
         None => Arc::new(cradle::Cradle::new(base.n, width, pendulum)),

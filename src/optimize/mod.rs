@@ -114,6 +114,34 @@ impl Variable {
     }
 }
 
+/// What `variables` vary: their keys, and the fewest and most balls a
+/// `balls` variable gives.
+fn varied(variables: &[Variable]) -> crate::model::Varied<'_> {
+    let balls = variables
+        .iter()
+        .find(|v| v.param.name == "balls")
+        .and_then(|v| {
+            let values = match &v.domain {
+                Domain::Range { .. } => vec![v.value(0.0), v.value(1.0)],
+                Domain::Choices(c) => c.clone(),
+            };
+            values
+                .iter()
+                .filter_map(|x| match x {
+                    Value::Num(n) => Some(*n as usize),
+                    Value::Text(_) => None,
+                })
+                .fold(None, |span: Option<(usize, usize)>, n| match span {
+                    None => Some((n, n)),
+                    Some((lo, hi)) => Some((lo.min(n), hi.max(n))),
+                })
+        });
+    crate::model::Varied {
+        names: variables.iter().map(|v| v.param.name.as_str()).collect(),
+        balls,
+    }
+}
+
 /// The base scene's value of a per-ball key (`mass[2]`; a key without an
 /// index when every ball has the same), `glue` or `balls`; `None` for the
 /// others.
@@ -385,30 +413,7 @@ impl Problem {
                 ),
             ));
         }
-        // The model, wide enough for every candidate.
-        let width = variables
-            .iter()
-            .filter(|v| v.param.name == "balls")
-            .map(|v| match &v.domain {
-                Domain::Range { max, .. } => *max as usize,
-                Domain::Choices(c) => c
-                    .iter()
-                    .filter_map(|x| {
-                        if let Value::Num(n) = x {
-                            Some(*n as usize)
-                        } else {
-                            None
-                        }
-                    })
-                    .max()
-                    .unwrap_or(0),
-            })
-            .fold(base.n, usize::max);
-        let pendulum = base.pendulum.is_some()
-            || variables
-                .iter()
-                .any(|v| matches!(v.param.name.as_str(), "length" | "gravity"));
-        let model = crate::model::of(&base, width, pendulum);
+        let model = crate::model::of(&base, &varied(&variables));
         let columns = model.header();
         let known = |c: &str| columns.iter().any(|h| h == c) || c == "total_mass";
         let allowed_columns =
@@ -561,18 +566,9 @@ impl Problem {
                 h.write_record(self.header())?;
                 h.flush()?;
                 drop(h);
-                let (mut line, mut scratch) = (Vec::new(), String::new());
-                for r in rows {
-                    line.clear();
-                    for (i, c) in r.iter().enumerate() {
-                        if i > 0 {
-                            line.push(b',');
-                        }
-                        row::push_csv_field(&mut line, row::field_text(c.field(), &mut scratch));
-                    }
-                    line.push(b'\n');
-                    w.write_all(&line)?;
-                }
+                let mut bytes = Vec::new();
+                csv_rows(rows, &mut bytes);
+                w.write_all(&bytes)?;
                 w.flush()?;
             }
             TableKind::Parquet => {
@@ -590,6 +586,11 @@ impl Problem {
             }
         }
         Ok(())
+    }
+
+    /// What its variables vary (for the model's needs from a backend).
+    pub fn varied(&self) -> crate::model::Varied<'_> {
+        varied(&self.variables)
     }
 
     /// The coordinates of the base scene's own values, where the base scene
@@ -613,6 +614,20 @@ impl Problem {
             axis::apply(&mut s, &self.base, &v.param, &v.value(x));
         }
         s
+    }
+}
+
+/// `rows` as CSV lines (the table's text after its header), appended to `out`.
+pub fn csv_rows(rows: &[Vec<Cell>], out: &mut Vec<u8>) {
+    let mut scratch = String::new();
+    for r in rows {
+        for (i, c) in r.iter().enumerate() {
+            if i > 0 {
+                out.push(b',');
+            }
+            row::push_csv_field(out, row::field_text(c.field(), &mut scratch));
+        }
+        out.push(b'\n');
     }
 }
 
@@ -687,39 +702,58 @@ pub struct Finished {
     pub wall_s: f64,
 }
 
-/// A row's verdict: feasible, its rank key (lower first: feasible rows by
-/// the objective, then rows that miss a constraint by how far, then failed
-/// runs) and its objective.
-fn judge(p: &Problem, row: &[Cell]) -> (bool, (u8, f64), f64) {
-    let lead = LEAD.len() + p.variables.len();
-    let total_mass = row[lead].as_f64().unwrap_or(f64::NAN);
-    let header = p.model.header();
-    let cell = |c: &str| -> f64 {
-        if c == "total_mass" {
-            return total_mass;
+/// Where a row's verdict is read: the table's status, objective and
+/// constraint columns, found once per run.
+struct Judge<'a> {
+    p: &'a Problem,
+    status: Option<usize>,
+    objective: Option<usize>,
+    constraints: Vec<Option<usize>>,
+}
+
+impl Judge<'_> {
+    fn new(p: &Problem) -> Judge<'_> {
+        let header = p.header();
+        let at = |c: &str| header.iter().position(|h| h == c);
+        Judge {
+            p,
+            status: at("status"),
+            objective: at(&p.objective.0),
+            constraints: p.constraints.iter().map(|c| at(&c.lhs)).collect(),
         }
-        header
+    }
+
+    /// A row's verdict: feasible, its rank key (lower first: feasible rows
+    /// by the objective, then rows that miss a constraint by how far, then
+    /// failed runs) and its objective.
+    fn verdict(&self, row: &[Cell]) -> (bool, (u8, f64), f64) {
+        let num = |i: Option<usize>| {
+            i.and_then(|i| row.get(i))
+                .and_then(Cell::as_f64)
+                .unwrap_or(f64::NAN)
+        };
+        let ok = self
+            .status
+            .is_some_and(|i| row[i] == Cell::Text(Status::Ok.name().into()));
+        let objective = num(self.objective);
+        let miss: f64 = self
+            .p
+            .constraints
             .iter()
-            .position(|h| h == c)
-            .and_then(|i| row[lead + 1 + i].as_f64())
-            .unwrap_or(f64::NAN)
-    };
-    let ok = header
-        .iter()
-        .position(|h| h == "status")
-        .is_some_and(|i| row[lead + 1 + i] == Cell::Text(Status::Ok.name().into()));
-    let objective = cell(&p.objective.0);
-    let miss: f64 = p.constraints.iter().map(|c| c.miss(cell(&c.lhs))).sum();
-    let feasible = ok && miss == 0.0 && objective.is_finite();
-    let sign = if p.objective.1 { -1.0 } else { 1.0 };
-    let key = if feasible {
-        (0, sign * objective)
-    } else if ok {
-        (1, miss)
-    } else {
-        (2, 0.0)
-    };
-    (feasible, key, objective)
+            .zip(&self.constraints)
+            .map(|(c, &i)| c.miss(num(i)))
+            .sum();
+        let feasible = ok && miss == 0.0 && objective.is_finite();
+        let sign = if self.p.objective.1 { -1.0 } else { 1.0 };
+        let key = if feasible {
+            (0, sign * objective)
+        } else if ok {
+            (1, miss)
+        } else {
+            (2, 0.0)
+        };
+        (feasible, key, objective)
+    }
 }
 
 /// Run the problem on `backend`. `earlier`: the rows of the generations a
@@ -742,6 +776,7 @@ pub fn run(
     let start = p.base_coordinates();
     let mut es = cmaes::Cmaes::new(start.clone(), 0.3, lambda, p.seed);
     let sign = if p.objective.1 { -1.0 } else { 1.0 };
+    let judge = Judge::new(p);
     let replayed = (earlier.len() / lambda) as u64;
     let mut earlier = earlier.into_iter();
     let mut rows: Vec<Vec<Cell>> = Vec::with_capacity(p.generations as usize * lambda);
@@ -820,7 +855,7 @@ pub fn run(
             };
         let mut keys = Vec::with_capacity(lambda);
         for (k, row) in new.iter_mut().enumerate() {
-            let (feasible, key, objective) = judge(p, row);
+            let (feasible, key, objective) = judge.verdict(row);
             row[2] = Cell::Text(feasible.to_string());
             keys.push(key);
             if feasible

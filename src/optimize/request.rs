@@ -72,21 +72,6 @@ pub struct OptimizeSummary {
     pub best_toml: Option<String>,
 }
 
-/// A row as a CSV line, appended to `out`.
-fn csv_row(row: &[Cell], out: &mut Vec<u8>) {
-    let mut scratch = String::new();
-    for (i, c) in row.iter().enumerate() {
-        if i > 0 {
-            out.push(b',');
-        }
-        crate::output::row::push_csv_field(
-            out,
-            crate::output::row::field_text(c.field(), &mut scratch),
-        );
-    }
-    out.push(b'\n');
-}
-
 impl OptimizeRequest {
     /// Check `problem` with `settings`, its table going to `out` (CSV or
     /// Parquet by the name) and its best design to `best`.
@@ -212,12 +197,8 @@ impl OptimizeRequest {
     ) -> Result<OptimizeSummary, Error> {
         let p = &self.problem;
         let backend = backend::choose(self.backend, self.solver.precision).map_err(Error::from)?;
-        let varied = crate::model::Varied {
-            names: p.variables.iter().map(|v| v.param.name.as_str()).collect(),
-            balls: None,
-        };
         backend
-            .prepare(&p.model.needs(&p.base, &varied, &self.solver))
+            .prepare(&p.model.needs(&p.base, &p.varied(), &self.solver))
             .map_err(Error::from)?;
         let (b, o): (&dyn crate::backend::Backend, &Overrides) = (&*backend, &self.overrides);
         // One writer for the whole run; its generations appended to
@@ -233,18 +214,10 @@ impl OptimizeRequest {
         } else {
             vec![]
         };
-        let mut text = format!("{first}\n");
-        {
-            let mut h = csv::Writer::from_writer(Vec::new());
-            h.write_record(p.header())
-                .map_err(|e| Error::Runtime(e.into()))?;
-            text.push_str(&String::from_utf8_lossy(
-                &h.into_inner()
-                    .map_err(|e| Error::Runtime(anyhow::anyhow!("{e}")))?,
-            ));
-        }
-        let mut kept = text.into_bytes();
-        earlier.iter().for_each(|r| csv_row(r, &mut kept));
+        // The partial file anew: its fingerprint line, then the table so far.
+        let mut kept = format!("{first}\n").into_bytes();
+        p.write_table(&earlier, TableKind::Csv, &mut kept)
+            .map_err(Error::from)?;
         write_with(&partial, |w| Ok(std::io::Write::write_all(w, &kept)?)).map_err(Error::from)?;
         let mut file = std::fs::OpenOptions::new()
             .append(true)
@@ -256,7 +229,7 @@ impl OptimizeRequest {
             use std::io::Write;
             crate::output::failpoint::check("generation")?;
             let mut bytes = vec![];
-            rows.iter().for_each(|r| csv_row(r, &mut bytes));
+            super::csv_rows(rows, &mut bytes);
             file.write_all(&bytes)?;
             file.sync_data()?;
             Ok(())

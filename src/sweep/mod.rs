@@ -80,6 +80,18 @@ impl Axis {
     }
 }
 
+/// What `axes` vary: their keys, and the fewest and most balls of a `balls`
+/// axis.
+fn varied(axes: &[Axis]) -> crate::model::Varied<'_> {
+    crate::model::Varied {
+        names: axes.iter().map(|a| a.param.name.as_str()).collect(),
+        balls: axes
+            .iter()
+            .find(|a| a.param.name == "balls")
+            .and_then(Axis::count_span),
+    }
+}
+
 #[derive(Clone, Debug, Serialize)]
 pub struct Sweep {
     #[serde(skip)]
@@ -125,15 +137,7 @@ impl Sweep {
     /// for [`crate::backend::Backend::prepare`].
     pub fn needs(&self, o: &Overrides) -> Result<crate::backend::Needs, InputError> {
         let solver = Solver::resolve(&self.base, o)?;
-        let varied = crate::model::Varied {
-            names: self.axes.iter().map(|a| a.param.name.as_str()).collect(),
-            balls: self
-                .axes
-                .iter()
-                .find(|a| a.param.name == "balls")
-                .and_then(Axis::count_span),
-        };
-        Ok(self.model.needs(&self.base, &varied, &solver))
+        Ok(self.model.needs(&self.base, &varied(&self.axes), &solver))
     }
 
     /// Number of values of each axis (the grid's shape).
@@ -168,15 +172,6 @@ impl Sweep {
             None => self.origin.clone(),
         };
         Solver::check_flags_against(&self.base, o, &scene_origin)
-    }
-
-    /// Whether this sweep's scenes hang on strings (`[pendulum]`, or a
-    /// `length`/`gravity` axis): a cradle table's displacement columns.
-    fn pendulum(base: &Scene, axes: &[Axis]) -> bool {
-        base.pendulum.is_some()
-            || axes
-                .iter()
-                .any(|a| matches!(a.param.name.as_str(), "length" | "gravity"))
     }
 
     /// Each axis with its index in scene `id` (row-major, first axis

@@ -428,7 +428,7 @@ impl Sweep {
             cx.check_values(&axes, &scene_spec, &base, width)?;
         }
         let axes: Vec<Axis> = axes.into_iter().map(|(_, a)| a).collect();
-        let model = crate::model::of(&base, width, Sweep::pendulum(&base, &axes));
+        let model = crate::model::of(&base, &super::varied(&axes));
         let mut sweep = Sweep {
             origin: cx.origin.clone(),
             inputs,
