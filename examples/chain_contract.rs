@@ -1,7 +1,7 @@
 //! The tolerance contract on chains unlike the step rule's fit (issue #43;
 //! results/chains.md): a family of chains (dimers, random radii and masses,
 //! tapers, impurities, a heavy striker, gaps, precompression, a head-on
-//! collision, a pulse, sensitive ones), each run under the error control at
+//! collision, a pulse, damped ones, sensitive ones), each run under the error control at
 //! tolerances 1e-4, 1e-6 and 1e-8 (`cradle run`'s path:
 //! `backend::run_chains_controlled` on the CPU, one thread), and each at a
 //! range of steps with its twin (the estimate's calibration pairs). Writes
@@ -136,6 +136,32 @@ fn family() -> Vec<(String, String)> {
             "[pulse]\nbead = 0\nforce = 1.0\nduration = 4e-5\n[walls]\nleft = true\nright = true\n",
         ),
     );
+    // Damped chains (issue #45): dashpots at every contact, air drag.
+    add(
+        "damped: uniform, viscosity 0.5 N s/m",
+        struck("[damping]\nviscosity = 0.5\n"),
+    );
+    add(
+        "damped: dimer R 5 / 2.5 mm, free ends, viscosity 1",
+        struck("[pattern]\nradius = [0.005, 0.0025]\n[damping]\nviscosity = 1.0\n"),
+    );
+    add(
+        "damped: precompressed 10 N, struck at 1 m/s, viscosity 5",
+        base("[launch]\nballs = 1\nvelocity = 1.0\n[walls]\nleft = true\nright = true\nprecompression = 10.0\n[damping]\nviscosity = 5.0\n"),
+    );
+    add(
+        "damped: gaps of 2 um, viscosity 1",
+        scene(
+            "radius = 0.005\ngap = 2e-6\n",
+            "[launch]\nballs = 1\nvelocity = 0.1\n[damping]\nviscosity = 1.0\n",
+        ),
+    );
+    add(
+        "damped: pulse 1 N x 40 us, walls, viscosity 0.5, air drag 50/s",
+        base(
+            "[pulse]\nbead = 0\nforce = 1.0\nduration = 4e-5\n[walls]\nleft = true\nright = true\n[damping]\nviscosity = 0.5\nair_drag = 50.0\n",
+        ),
+    );
     let mut g = Rng(0xA0761D6478BD642F);
     add(
         "sensitive: 30 random beads with 20 um gaps between walls, 30 ms",
@@ -249,6 +275,8 @@ fn chain_json(name: &str, b: &Beads, runs: Vec<Value>) -> Value {
         "v0": b.v0,
         "pulse": b.pulse.as_ref().map(|p| json!({"bead": p.bead, "force": p.force, "duration": p.duration})),
         "probes": b.probes,
+        "viscosity": b.viscosity,
+        "air_drag": b.air_drag,
         "v_scale": b.v_scale(),
         "t_scale": b.time_scale(),
         "runs": runs,

@@ -33,19 +33,31 @@ DEBUG = False
 
 
 
-def accel(u, k, d0, f0, inv_m):
-    """Accelerations of the beads at displacements u (from rest, +: right).
+def accel(u, k, d0, f0, inv_m, v=None, gamma=0.0, drag=0.0):
+    """Accelerations of the beads at displacements u (from rest, +: right)
+    and velocities v.
 
     Contact j (0 ..= n) between bead j-1 and j (0: the left wall, n: the right
     one) has overlap d0_j + u_{j-1} - u_j; it pushes bead j right and j-1 left
-    with k_j*delta^(3/2) (0 when open); f0_j is its force at rest.
+    with k_j*delta^(3/2) (0 when open); f0_j is its force at rest. With a
+    dashpot gamma (issue #45) a closed contact's force is
+    max(0, k*delta^(3/2) + gamma*delta'), delta' = v_{j-1} - v_j (never
+    pulling); the air drag adds -drag*v to every bead.
     """
     ul = np.concatenate(([0.0], u))
     ur = np.concatenate((u, [0.0]))
     d = np.maximum(d0 + ul - ur, 0.0)
-    e = k * d * np.sqrt(d) - f0
+    f = k * d * np.sqrt(d)
+    if gamma > 0.0:
+        vl = np.concatenate(([0.0], v))
+        vr = np.concatenate((v, [0.0]))
+        f = np.where(d > 0.0, np.maximum(f + gamma * (vl - vr), 0.0), 0.0)
+    e = f - f0
     e[k == 0.0] = 0.0
-    return (e[:-1] - e[1:]) * inv_m
+    a = (e[:-1] - e[1:]) * inv_m
+    if drag > 0.0:
+        a = a - drag * v
+    return a
 
 
 def make_rhs(c, pulse_on):
@@ -54,9 +66,11 @@ def make_rhs(c, pulse_on):
     n = c["n"]
     p = c["pulse"]
 
+    gamma, drag = c.get("viscosity", 0.0), c.get("air_drag", 0.0)
+
     def rhs(t, y):
         u, v = y[:n], y[n:]
-        a = accel(u, k, d0, f0, inv_m)
+        a = accel(u, k, d0, f0, inv_m, v, gamma, drag)
         if pulse_on and p is not None:
             a[p["bead"]] += p["force"] * math.sin(math.pi * t / p["duration"]) * inv_m[p["bead"]]
         return np.concatenate((v, a))
@@ -65,12 +79,27 @@ def make_rhs(c, pulse_on):
 
 
 def overlaps(c, y):
-    """Overlap of every contact that exists (k > 0) at state y."""
+    """Overlap of every contact that exists (k > 0) at state y; with
+    dashpots also, per contact, where its force's kinks are: the spring plus
+    dashpot force F = k*delta^(3/2) + gamma*delta' of a closed contact (its
+    sign changes where the contact goes slack, never pulling), as the length
+    sign(F)*|F/k|^(2/3) (1 for an open one)."""
     n = c["n"]
     u = y[:n]
     ul = np.concatenate(([0.0], u))
     ur = np.concatenate((u, [0.0]))
-    return (c["d0"] + ul - ur)[c["has"]]
+    d = (c["d0"] + ul - ur)[c["has"]]
+    gamma = c.get("viscosity", 0.0)
+    if gamma == 0.0:
+        return d
+    v = y[n:]
+    vl = np.concatenate(([0.0], v))
+    vr = np.concatenate((v, [0.0]))
+    k = c["k"][c["has"]]
+    dp = np.maximum(d, 0.0)
+    s = (k * dp * np.sqrt(dp) + gamma * (vl - vr)[c["has"]]) / k
+    s = np.sign(s) * np.abs(s) ** (2.0 / 3.0)  # (F/k)^(2/3): a length
+    return np.concatenate((d, np.where(d > 0.0, s, 1.0)))
 
 
 def integrate(c, rtol, t_ends):
@@ -131,7 +160,7 @@ def integrate(c, rtol, t_ends):
                 for j in np.nonzero((pos[1:] != pos[:-1]).any(axis=0) & big)[0]:
                     m = int(np.nonzero(pos[1:, j] != pos[:-1, j])[0][0])
                     lo, hi = ts_[m], ts_[m + 1]
-                    x = brentq(lambda tt: overlaps(c, dense(tt))[j], lo, hi, xtol=1e-300, rtol=1e-15)
+                    x = brentq(lambda tt: overlaps(c, dense(tt))[j], lo, hi, xtol=1e-300, rtol=1e-15, maxiter=1000)
                     # A crossing at the step's start (the restart's own) is no kink inside it.
                     if x - t0 > 1e-9 * (t1 - t0):
                         tc = min(tc, x)
@@ -148,7 +177,7 @@ def integrate(c, rtol, t_ends):
                             if a0[i] > 0 >= a1[i]:
                                 dd = seg.dense_output() if seg.t_old is not None else None
                                 if dd is not None:
-                                    tp = brentq(lambda tt: rhs(tt, dd(tt))[n + i], seg.t_old, t1, xtol=1e-300, rtol=1e-15)
+                                    tp = brentq(lambda tt: rhs(tt, dd(tt))[n + i], seg.t_old, t1, xtol=1e-300, rtol=1e-15, maxiter=1000)
                                     vp = dd(tp)[n + i]
                                     if vp > floor:
                                         found[i].append((tp, vp))
@@ -164,7 +193,7 @@ def integrate(c, rtol, t_ends):
                 for i in c["probes"]:
                     if a0[i] > 0 >= a1[i]:
                         dense = solver.dense_output()
-                        tp = brentq(lambda tt: rhs(tt, dense(tt))[n + i], t0, t1, xtol=1e-300, rtol=1e-15)
+                        tp = brentq(lambda tt: rhs(tt, dense(tt))[n + i], t0, t1, xtol=1e-300, rtol=1e-15, maxiter=1000)
                         vp = dense(tp)[n + i]
                         if vp > floor:
                             found[i].append((tp, vp))

@@ -40,10 +40,11 @@ pub struct Granular {
 }
 
 impl Granular {
-    /// Chains of at most `most_beads` beads with the base scene's `probes`.
-    pub fn new(probes: Vec<usize>, most_beads: usize) -> Granular {
+    /// Chains of at most `most_beads` beads with the base scene's `probes`
+    /// (`damped`: some may dissipate; `piston`: some have a piston).
+    pub fn new(probes: Vec<usize>, most_beads: usize, damped: bool, piston: bool) -> Granular {
         Granular {
-            cols: Arc::new(Columns::for_chains(probes, most_beads)),
+            cols: Arc::new(Columns::for_chains(probes, most_beads, damped, piston)),
             most_beads,
         }
     }

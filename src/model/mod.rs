@@ -150,13 +150,26 @@ impl RowOutcome {
 
 /// The model of a sweep whose base scene is `base` and which varies
 /// `varied`: its table is as wide as its longest chain (the base scene's, or
-/// a `balls` value's), and a cradle's has displacement columns when its
+/// a `balls` value's), a chain's has `energy_dissipated` when it is damped
+/// or its damping varied (`shock_speed`, `piston_work` with a piston), and a cradle's has displacement columns when its
 /// scenes hang on strings (`[pendulum]`, or a `length`/`gravity` key varied).
 pub fn of(base: &Scene, varied: &Varied) -> Arc<dyn Model> {
     let width = varied.balls.map_or(base.n, |span| span.1.max(base.n));
     let pendulum = base.pendulum.is_some() || varied.any(&["length", "gravity"]);
     match &base.chain {
-        Some(c) => Arc::new(granular::Granular::new(c.probes.clone(), width)),
+        Some(c) => {
+            // A damped chain's table has `energy_dissipated`.
+            let damped = c.viscosity > 0.0
+                || c.air_drag > 0.0
+                || varied.any(&["damping.viscosity", "damping.air_drag"]);
+            let piston = c.piston > 0.0 || varied.any(&["piston.velocity"]);
+            Arc::new(granular::Granular::new(
+                c.probes.clone(),
+                width,
+                damped,
+                piston,
+            ))
+        }
         None => Arc::new(cradle::Cradle::new(base.n, width, pendulum)),
     }
 }
@@ -179,6 +192,6 @@ pub fn mixed_sweep(base: &Scene) -> String {
     format!(
         "a scene like the base scene: the base scene is {base} and this value makes {value} \
          (a sweep's scenes are all cradles or all granular chains; a chain of at most 64 beads \
-         is one when it has [walls], [pulse], [probes], [record], [pattern], [taper], [impurity] or [gravity])"
+         is one when it has [walls], [pulse], [probes], [record], [pattern], [taper], [impurity], [gravity] or [piston])"
     )
 }

@@ -15,6 +15,12 @@ use crate::scene::MAX_BALLS;
 pub struct Columns {
     pub probes: Vec<usize>,
     pub velocities: Vec<usize>,
+    /// Whether the table has `energy_dissipated` (after `energy_left`):
+    /// a damped chain's (issue #45).
+    pub damped: bool,
+    /// Whether it has `shock_speed` and `piston_work` (after
+    /// `pulse_width`): a chain with a piston's.
+    pub piston: bool,
 }
 
 /// The columns after the per-bead ones, in order.
@@ -41,18 +47,30 @@ const TAIL: [&str; 17] = [
 impl Columns {
     /// The columns of one chain's row (`cradle run`).
     pub fn of(b: &Beads) -> Columns {
-        Self::for_chains(b.probes.clone(), b.n)
+        Self::for_chains(b.probes.clone(), b.n, b.damped(), b.piston > 0.0)
     }
 
     /// The columns of a table of chains of at most `most_beads` beads with
-    /// these probe beads (a sweep's: the base scene's probes).
-    pub fn for_chains(probes: Vec<usize>, most_beads: usize) -> Columns {
+    /// these probe beads (a sweep's: the base scene's probes); `damped`:
+    /// with `energy_dissipated`; `piston`: with `shock_speed` and
+    /// `piston_work`.
+    pub fn for_chains(
+        probes: Vec<usize>,
+        most_beads: usize,
+        damped: bool,
+        piston: bool,
+    ) -> Columns {
         let velocities = if most_beads <= MAX_BALLS {
             (0..most_beads).collect()
         } else {
             probes.clone()
         };
-        Columns { probes, velocities }
+        Columns {
+            probes,
+            velocities,
+            damped,
+            piston,
+        }
     }
 
     /// Column names (after a sweep's `id` and axis columns).
@@ -64,13 +82,31 @@ impl Columns {
             }
         }
         h.extend(self.velocities.iter().map(|i| format!("v_{i}")));
-        h.extend(TAIL.iter().map(|c| c.to_string()));
+        h.extend(self.tail().map(|c| c.to_string()));
         h
+    }
+
+    /// The columns after the per-bead ones: [`TAIL`], with
+    /// `energy_dissipated` after `energy_left` when damped, `shock_speed`
+    /// and `piston_work` after `pulse_width` with a piston.
+    fn tail(&self) -> impl Iterator<Item = &'static str> + '_ {
+        TAIL.iter().flat_map(move |&c| {
+            let extra: &[&'static str] = match c {
+                "energy_left" if self.damped => &["energy_dissipated"],
+                "pulse_width" if self.piston => &["shock_speed", "piston_work"],
+                _ => &[],
+            };
+            std::iter::once(c).chain(extra.iter().copied())
+        })
     }
 
     /// Number of columns ([`Columns::header`]'s length).
     pub fn width(&self) -> usize {
-        1 + 3 * self.probes.len() + self.velocities.len() + TAIL.len()
+        1 + 3 * self.probes.len()
+            + self.velocities.len()
+            + TAIL.len()
+            + self.damped as usize
+            + 2 * self.piston as usize
     }
 
     /// The fields of a row as the CSV writes them, in
@@ -91,7 +127,7 @@ impl Columns {
             Num,
             3 * self.probes.len() + self.velocities.len(),
         ));
-        t.extend(TAIL.iter().map(|&c| match c {
+        t.extend(self.tail().map(|c| match c {
             "fragments" | "steps" => Int,
             _ => Num,
         }));
@@ -132,9 +168,13 @@ impl Columns {
         };
         let (lp, li) = wall(&o.left_wall);
         let (rp, ri) = wall(&o.right_wall);
+        num(o.pulse_speed, out);
+        num(o.pulse_width, out);
+        if self.piston {
+            num(o.shock_speed, out);
+            num(o.piston_work, out);
+        }
         for x in [
-            o.pulse_speed,
-            o.pulse_width,
             lp,
             li,
             rp,
@@ -144,6 +184,9 @@ impl Columns {
             o.energy_left,
         ] {
             num(x, out);
+        }
+        if self.damped {
+            num(o.energy_dissipated, out);
         }
         out(if garbage {
             Field::Null
@@ -221,10 +264,35 @@ pub fn table(name: &str, b: &Beads, o: &ChainOutcome) -> String {
         );
     }
     let _ = writeln!(s, "fragments          {}", o.fragments);
-    let _ = writeln!(s, "energy_error       {:.3e}  (relative)", o.energy_error);
+    if b.piston > 0.0 {
+        let _ = writeln!(
+            s,
+            "piston             {} m/s: shock_speed {:.6} m/s (probes' velocity reaching half of it), work {:.6e} J",
+            b.piston, o.shock_speed, o.piston_work
+        );
+    }
+    if b.damped() {
+        let _ = writeln!(
+            s,
+            "energy_dissipated  {:.6e} J  (by the dashpots and the air drag)",
+            o.energy_dissipated
+        );
+    }
+    let _ = writeln!(
+        s,
+        "energy_error       {:.3e}  (relative{})",
+        o.energy_error,
+        if b.damped() {
+            "; of the energy plus what the damping took"
+        } else {
+            ""
+        }
+    );
     if b.left_wall || b.right_wall {
         // A wall takes momentum: there is no conservation to check.
         let _ = writeln!(s, "momentum_error     n/a (walls take momentum)");
+    } else if b.air_drag > 0.0 {
+        let _ = writeln!(s, "momentum_error     n/a (the air drag takes momentum)");
     } else {
         let _ = writeln!(s, "momentum_error     {:.3e}  (relative)", o.momentum_error);
     }

@@ -105,6 +105,9 @@ pub(super) const POISSON: &str = "must be in [0, 0.5)";
 pub(super) fn non_negative(x: f64) -> bool {
     x >= 0.0
 }
+pub(super) fn finite_non_negative(x: f64) -> bool {
+    (0.0..f64::INFINITY).contains(&x)
+}
 pub(super) fn any(_: f64) -> bool {
     true
 }

@@ -3,7 +3,7 @@
 //! `[pattern]`, `[taper]`, `[impurity]`, checked as every scene key is
 //! (file:line, key, value, what is allowed).
 
-use super::check::{non_negative, poisson, positive, Check, POISSON, POS};
+use super::check::{finite_non_negative, non_negative, poisson, positive, Check, POISSON, POS};
 use super::*;
 
 /// The per-bead arrays `[pattern]`, `[taper]` and `[impurity]` rewrite.
@@ -55,15 +55,16 @@ impl SceneSpec {
             || self.taper.is_some()
             || self.impurity.is_some()
             || self.gravity.is_some()
+            || self.piston.is_some()
     }
 
-    /// Glue, a pendulum and damping belong to the cradle engine: a chain
-    /// refuses them rather than ignoring them.
+    /// Glue and a pendulum belong to the cradle engine: a chain refuses
+    /// them rather than ignoring them.
     pub(super) fn cradle_only_keys(&self, c: &Check, n: usize) -> Result<(), InputError> {
         let why = if n > MAX_BALLS {
             format!("a chain of {n} beads (above {MAX_BALLS}: a granular chain)")
         } else {
-            "a granular chain (a scene with [walls], [pulse], [record], [probes], [pattern], [taper], [impurity] or [gravity])".to_string()
+            "a granular chain (a scene with [walls], [pulse], [record], [probes], [pattern], [taper], [impurity], [gravity] or [piston])".to_string()
         };
         if self.glue.as_deref().is_some_and(|g| g.contains('=')) {
             return Err(c.err(
@@ -77,13 +78,6 @@ impl SceneSpec {
                 "pendulum",
                 "[pendulum]",
                 format!("no pendulum in {why}: beads lie on a frictionless line"),
-            ));
-        }
-        if self.damping.is_some() {
-            return Err(c.err(
-                "damping",
-                "[damping]",
-                format!("no damping in {why}: chains are elastic in this version"),
             ));
         }
         Ok(())
@@ -307,6 +301,75 @@ impl SceneSpec {
         Ok(g)
     }
 
+    /// A chain's `[damping]` (issue #45): the contacts' dashpot γ (N·s/m)
+    /// and the beads' air drag (1/s), each ≥ 0. Hunt–Crossley contacts
+    /// (`restitution` below 1) are not in the chain engine yet: refused.
+    fn chain_damping(c: &Check, d: &super::spec::DampingSpec) -> Result<(f64, f64), InputError> {
+        if let Some(e) = d.restitution.filter(|&e| e != 1.0) {
+            return Err(c.err(
+                "damping.restitution",
+                e,
+                "1 on a granular chain (Hunt–Crossley contacts are not in the chain engine yet): give `viscosity` (N·s/m), a dashpot at each contact",
+            ));
+        }
+        let g = c.opt(
+            "damping.viscosity",
+            d.viscosity,
+            finite_non_negative,
+            "must be finite and ≥ 0 (N·s/m)",
+        )?;
+        let drag = c.opt(
+            "damping.air_drag",
+            d.air_drag,
+            finite_non_negative,
+            "must be finite and ≥ 0 (1/s)",
+        )?;
+        Ok((g.unwrap_or(0.0), drag.unwrap_or(0.0)))
+    }
+
+    /// `[piston] velocity` (m/s, finite, > 0): the left wall moves into the
+    /// chain from t = 0; it needs that wall, and a `[stop] duration` (its
+    /// push never ends, so no pulse reaching the far end ends the run).
+    fn piston_of(
+        &self,
+        c: &Check,
+        p: &super::spec::PistonSpec,
+        setup: &ChainSetup,
+        duration: Option<f64>,
+    ) -> Result<f64, InputError> {
+        let Some(u) = p.velocity else {
+            return Err(InputError::Missing {
+                origin: self.origin.clone(),
+                line: self.line_of("piston"),
+                key: "piston.velocity".into(),
+                help: "the speed the left wall moves into the chain at (m/s, > 0)".into(),
+            });
+        };
+        let u = c.num(
+            "piston.velocity",
+            u,
+            |x| x > 0.0 && x.is_finite(),
+            "must be finite and > 0 (m/s)",
+        )?;
+        if setup.left_wall.is_none() {
+            return Err(c.err(
+                "piston.velocity",
+                u,
+                "a left wall to move: [walls] left = true",
+            ));
+        }
+        if duration.is_none() {
+            return Err(InputError::Missing {
+                origin: self.origin.clone(),
+                line: self.line_of("piston"),
+                key: "stop.duration".into(),
+                help: "how long the piston pushes (s): it never stops, so the run needs an end"
+                    .into(),
+            });
+        }
+        Ok(u)
+    }
+
     /// Walls, precompression, pulse, record and probes of a chain.
     pub(super) fn chain_setup(
         &self,
@@ -360,6 +423,12 @@ impl SceneSpec {
         }
         if let Some(g) = &self.gravity {
             setup.gravity = self.gravity_of(c, g, &setup, gap)?;
+        }
+        if let Some(d) = &self.damping {
+            (setup.viscosity, setup.air_drag) = Self::chain_damping(c, d)?;
+        }
+        if let Some(p) = &self.piston {
+            setup.piston = self.piston_of(c, p, &setup, duration)?;
         }
         if let Some(p) = &self.pulse {
             setup.pulse = Some(self.pulse_of(c, p, n, duration)?);

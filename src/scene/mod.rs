@@ -190,6 +190,17 @@ pub struct ChainSetup {
     /// `[gravity] g` (m/s²) towards the left wall; 0: none.
     #[serde(skip_serializing_if = "crate::scene::is_zero")]
     pub gravity: f64,
+    /// `[damping] viscosity` γ (N·s/m): a dashpot in parallel with each
+    /// closed contact (issue #45); 0: none.
+    #[serde(skip_serializing_if = "crate::scene::is_zero")]
+    pub viscosity: f64,
+    /// `[damping] air_drag` (1/s) on every bead; 0: none.
+    #[serde(skip_serializing_if = "crate::scene::is_zero")]
+    pub air_drag: f64,
+    /// `[piston] velocity` (m/s): the left wall moves into the chain at this
+    /// speed from t = 0; 0: it stands still.
+    #[serde(skip_serializing_if = "crate::scene::is_zero")]
+    pub piston: f64,
     pub pulse: Option<Pulse>,
     pub record: Option<Record>,
     pub probes: Vec<usize>,

@@ -98,12 +98,14 @@ pub struct PendulumSpec {
     pub gravity: Option<f64>,
 }
 
-/// `[damping]`: coefficient of restitution and linear air drag (1/s).
+/// `[damping]`: coefficient of restitution and linear air drag (1/s); on a
+/// granular chain also a dashpot at each contact (`viscosity`, N·s/m).
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct DampingSpec {
     pub restitution: Option<f64>,
     pub air_drag: Option<f64>,
+    pub viscosity: Option<f64>,
 }
 
 /// `[stop]`: simulated duration (s) and the step cap.
@@ -143,6 +145,14 @@ pub struct WallsSpec {
 #[serde(deny_unknown_fields)]
 pub struct GravitySpec {
     pub g: Option<f64>,
+}
+
+/// `[piston]`: the left wall moves into the chain at `velocity` (m/s)
+/// from t = 0 (issue #45).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PistonSpec {
+    pub velocity: Option<f64>,
 }
 
 /// `[pulse]`: a half-sine force (N) on one bead for `duration` (s).
@@ -234,6 +244,7 @@ pub(crate) struct RawScene {
     taper: Option<Spanned<TaperSpec>>,
     impurity: Option<Spanned<ImpuritySpec>>,
     gravity: Option<Spanned<GravitySpec>>,
+    piston: Option<Spanned<PistonSpec>>,
 }
 
 /// A scene as written: every key optional until [`SceneSpec::validate`].
@@ -272,6 +283,8 @@ pub struct SceneSpec {
     pub impurity: Option<ImpuritySpec>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub gravity: Option<GravitySpec>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub piston: Option<PistonSpec>,
     /// Where the scene came from (a path, or `built-in scene NAME`).
     #[serde(skip)]
     pub origin: String,
@@ -326,6 +339,7 @@ impl SceneSpec {
             taper: take(src, &mut l, "taper", r.taper),
             impurity: take(src, &mut l, "impurity", r.impurity),
             gravity: take(src, &mut l, "gravity", r.gravity),
+            piston: take(src, &mut l, "piston", r.piston),
             origin: src.name.clone(),
             lines: l,
         })

@@ -20,7 +20,11 @@ impl SceneSpec {
         let pendulum = self.pendulum(&c)?;
         let (velocity, displacement) = self.launch(&c, n, pendulum.as_ref())?;
         check_glued_launch(&c, &glue, &velocity, &displacement)?;
-        let damping = self.damping(&c, pendulum.as_ref())?;
+        // A chain's [damping] is part of its setup (`chain_setup`).
+        let damping = match chain {
+            true => None,
+            false => self.damping(&c, pendulum.as_ref())?,
+        };
         let (duration, max_steps) = self.stop(&c, pendulum.as_ref())?;
         let solver = self.solver(&c)?;
         let chain = match chain {
@@ -217,13 +221,13 @@ impl SceneSpec {
                     "give `velocity` or `[launch]`, not both",
                 ))
             }
-            // A pulse excites a chain at rest.
-            (None, None) if self.pulse.is_some() => vec![0.0; n],
+            // A pulse or a piston excites a chain at rest.
+            (None, None) if self.pulse.is_some() || self.piston.is_some() => vec![0.0; n],
             (None, None) => {
                 // A chain with nothing to move it would stay at rest: say
                 // what can move it (a pulse, unlike a cradle).
                 let help = if self.is_chain(n) {
-                    "a chain needs something to move it: `velocity = [...]` (m/s, one per bead), a `[launch]` table or a `[pulse]` (with precompression alone it stays at rest)"
+                    "a chain needs something to move it: `velocity = [...]` (m/s, one per bead), a `[launch]` table, a `[pulse]` or a `[piston]` (with precompression alone it stays at rest)"
                 } else {
                     "give `velocity = [...]` (m/s, one per ball) or a `[launch]` table"
                 };
@@ -312,6 +316,13 @@ impl SceneSpec {
         c: &Check,
         pendulum: Option<&Pendulum>,
     ) -> Result<Option<Damping>, InputError> {
+        if let Some(g) = self.damping.as_ref().and_then(|d| d.viscosity) {
+            return Err(c.err(
+                "damping.viscosity",
+                g,
+                "a granular chain's key (a dashpot at each bead contact); a cradle's contacts take `restitution`",
+            ));
+        }
         let damping = match &self.damping {
             None => None,
             Some(d) => Some(Damping {

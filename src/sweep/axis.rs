@@ -73,6 +73,9 @@ pub const PARAMS: &[(&str, Kind)] = &[
     ("impurity.young_modulus", Kind::Number),
     ("impurity.poisson_ratio", Kind::Number),
     ("gravity.g", Kind::Number),
+    ("damping.viscosity", Kind::Number),
+    ("damping.air_drag", Kind::Number),
+    ("piston.velocity", Kind::Number),
 ];
 
 /// A parsed `param` string: name, kind and optional index.
@@ -523,6 +526,21 @@ pub fn apply(spec: &mut SceneSpec, base: &Scene, p: &Param, value: &Value) {
             spec.gravity
                 .get_or_insert_with(crate::scene::spec::GravitySpec::default)
                 .g = Some(num)
+        }
+        "damping.viscosity" => {
+            spec.damping
+                .get_or_insert_with(DampingSpec::default)
+                .viscosity = Some(num)
+        }
+        "damping.air_drag" => {
+            spec.damping
+                .get_or_insert_with(DampingSpec::default)
+                .air_drag = Some(num)
+        }
+        "piston.velocity" => {
+            spec.piston
+                .get_or_insert_with(crate::scene::spec::PistonSpec::default)
+                .velocity = Some(num)
         }
         name if p.kind == Kind::Pattern => {
             let pat = spec.pattern.get_or_insert_with(PatternSpec::default);

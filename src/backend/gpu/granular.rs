@@ -475,6 +475,10 @@ fn finish<R: Real>(job: &ChainJob, h: &ChainHead, reals: &[R], e_start: f64) -> 
         scratch: crate::engine::granular::step::Scratch::none(),
         regions: h.regions as u64,
         region_beads: h.region_beads as u64,
+        // Damped chains run on the CPU engine (`Gpu::run_chains`).
+        lost_c: Vec::new(),
+        lost_b: Vec::new(),
+        wall_imp: R::zero(),
     };
     let mut watch = Watch::<R>::new(b);
     let mut o = rel(h.o_watch);

@@ -306,23 +306,39 @@ impl Backend for Gpu {
         Gpu::prepare(self, needs)
     }
 
-    /// A workgroup per chain (`chains.rs`); the chains are built on the
-    /// rayon pool, all of the batch before the device starts.
+    /// A workgroup per chain (`granular.rs`); the chains are built on the
+    /// rayon pool, all of the batch before the device starts. Damped chains
+    /// and pistons (issue #45) run on the CPU engine beside them: the
+    /// kernel has no damping substep and no moving wall yet.
     fn run_chains(
         &self,
         n: usize,
         job: ChainSource,
     ) -> Result<Vec<crate::engine::granular::ChainOutcome>> {
+        use crate::engine::granular::ChainOutcome;
         use rayon::prelude::*;
         let jobs: Vec<Option<super::ChainJob>> =
             (0..n).into_par_iter().map(job).collect::<Result<_, _>>()?;
-        let valid: Vec<&super::ChainJob> = jobs.iter().flatten().collect();
+        let damped = |j: &super::ChainJob| j.beads.cpu_only();
+        let valid: Vec<&super::ChainJob> = jobs.iter().flatten().filter(|j| !damped(j)).collect();
         let mut done = self.run_chain_jobs(&valid)?.into_iter();
         Ok(jobs
-            .iter()
+            .par_iter()
             .map(|j| match j {
-                Some(_) => done.next().expect("one outcome per chain"),
-                None => crate::engine::granular::ChainOutcome::invalid(),
+                Some(j) if damped(j) => crate::engine::granular::run(
+                    &j.beads,
+                    &j.plan,
+                    &mut crate::engine::granular::NoRows,
+                ),
+                Some(_) => ChainOutcome::invalid(),
+                None => ChainOutcome::invalid(),
+            })
+            .collect::<Vec<_>>()
+            .into_iter()
+            .zip(&jobs)
+            .map(|(o, j)| match j {
+                Some(j) if !damped(j) => done.next().expect("one outcome per chain"),
+                _ => o,
             })
             .collect())
     }

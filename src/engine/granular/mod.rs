@@ -72,6 +72,12 @@ pub struct Beads {
     /// Gravity towards the left wall (m/s²; 0: none): contact j's static
     /// force is then the precompression plus the weight above it.
     pub gravity: f64,
+    /// Dashpot γ at each closed contact (N·s/m; 0: none, issue #45).
+    pub viscosity: f64,
+    /// Air drag on every bead (1/s; 0: none).
+    pub air_drag: f64,
+    /// Speed of the left wall into the chain (m/s; 0: it stands still).
+    pub piston: f64,
     pub left_wall: bool,
     pub right_wall: bool,
     /// Initial velocity of each bead (m/s).
@@ -108,6 +114,96 @@ pub struct Consts<R> {
     pub r: Vec<R>,
     pub inv_mass: Vec<R>,
     pub pulse: Option<PulseConsts<R>>,
+    /// The dashpots and air drag of a damped chain ([`Beads::damped`]).
+    pub damp: Option<DampConsts<R>>,
+    /// The left wall's speed (m/s; 0: it stands still).
+    pub piston: R,
+}
+
+/// What the damping substep ([`step`]'s `damp`) reads, in the step's
+/// precision (docs/SPEC.md §9, "Damping"). Contact j joins bead a = j − 1
+/// and bead b = j (a wall for j = 0 and j = n: infinitely heavy).
+#[derive(Clone, Debug, PartialEq)]
+pub struct DampConsts<R> {
+    /// γ (N·s/m).
+    pub gamma: R,
+    /// Air drag (1/s).
+    pub drag: R,
+    /// γ·(1/m_a + 1/m_b) of each contact (1/s): the rate its relative
+    /// velocity decays at; 0 without a contact.
+    pub beta: Vec<R>,
+    /// 1/m_a + 1/m_b (1/kg), and μ = its inverse (kg).
+    pub inv_mu: Vec<R>,
+    pub mu: Vec<R>,
+    /// μ/m_a and μ/m_b: the shares of a change of relative velocity that
+    /// beads a and b take (1 for a bead against a wall).
+    pub share_a: Vec<R>,
+    pub share_b: Vec<R>,
+    /// Each bead's mass (kg), for the energy the air drag takes.
+    pub mass: Vec<R>,
+}
+
+impl<R: Real> DampConsts<R> {
+    fn of(b: &Beads) -> DampConsts<R> {
+        let n = b.n;
+        // 1/m of contact j's beads (0 for a wall).
+        let im = |i: Option<usize>| i.map_or(0.0, |i| b.inv_mass[i]);
+        let ends = |j: usize| ((j > 0).then(|| j - 1), (j < n).then_some(j));
+        let inv_mu: Vec<f64> = (0..=n)
+            .map(|j| {
+                let (a, z) = ends(j);
+                im(a) + im(z)
+            })
+            .collect();
+        // μ/m of one bead: (1/m)/(1/m_a + 1/m_b).
+        let share = |j: usize, bead: Option<usize>| im(bead) / inv_mu[j];
+        let conv = |x: Vec<f64>| x.into_iter().map(R::of).collect::<Vec<R>>();
+        DampConsts {
+            gamma: R::of(b.viscosity),
+            drag: R::of(b.air_drag),
+            beta: conv(
+                (0..=n)
+                    .map(|j| {
+                        if b.k[j] == 0.0 {
+                            0.0
+                        } else {
+                            b.viscosity * inv_mu[j]
+                        }
+                    })
+                    .collect(),
+            ),
+            mu: conv(
+                inv_mu
+                    .iter()
+                    .map(|&x| if x > 0.0 { 1.0 / x } else { 0.0 })
+                    .collect(),
+            ),
+            share_a: conv(
+                (0..=n)
+                    .map(|j| {
+                        if b.k[j] == 0.0 {
+                            0.0
+                        } else {
+                            share(j, ends(j).0)
+                        }
+                    })
+                    .collect(),
+            ),
+            share_b: conv(
+                (0..=n)
+                    .map(|j| {
+                        if b.k[j] == 0.0 {
+                            0.0
+                        } else {
+                            share(j, ends(j).1)
+                        }
+                    })
+                    .collect(),
+            ),
+            inv_mu: conv(inv_mu),
+            mass: conv(b.mass.clone()),
+        }
+    }
 }
 
 /// A half-sine pulse in the step's precision.
@@ -143,6 +239,8 @@ impl<R: Real> Consts<R> {
                 duration: R::of(p.duration),
                 inv_mass: R::of(b.inv_mass[p.bead]),
             }),
+            damp: b.damped().then(|| DampConsts::of(b)),
+            piston: R::of(b.piston),
         }
     }
 }
@@ -219,6 +317,9 @@ impl Beads {
             f0,
             precompression: f,
             gravity: g,
+            viscosity: setup.viscosity,
+            air_drag: setup.air_drag,
+            piston: setup.piston,
             left_wall: setup.left_wall.is_some(),
             right_wall: setup.right_wall.is_some(),
             v0: s.velocity.clone(),
@@ -230,10 +331,22 @@ impl Beads {
         }
     }
 
+    /// Whether the chain dissipates (a dashpot or air drag, issue #45).
+    pub fn damped(&self) -> bool {
+        self.viscosity > 0.0 || self.air_drag > 0.0
+    }
+
+    /// Whether only the CPU engine runs this chain: the GPU kernel has no
+    /// damping substep and no piston yet (issue #45).
+    pub fn cpu_only(&self) -> bool {
+        self.damped() || self.piston > 0.0
+    }
+
     /// The speed every velocity error is relative to (m/s): the largest
-    /// initial speed, or the speed the pulse's impulse 2Fτ/π gives its bead.
+    /// initial speed (a piston's among them), or the speed the pulse's
+    /// impulse 2Fτ/π gives its bead.
     pub fn v_scale(&self) -> f64 {
-        let v = self.v0.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        let v = self.v0.iter().fold(self.piston, |m, v| m.max(v.abs()));
         let p = self.pulse.as_ref().map_or(0.0, |p| {
             2.0 * p.force.abs() * p.duration / std::f64::consts::PI * self.inv_mass[p.bead]
         });
@@ -275,6 +388,13 @@ impl Beads {
         }
         if let Some(p) = &self.pulse {
             t = t.min(p.duration / std::f64::consts::PI);
+        }
+        // Damping: the fastest decay of a contact's relative velocity,
+        // γ·(1/m_a + 1/m_b) ≤ 2γ/m_min, and the air drag's rate.
+        let m_min = self.mass.iter().fold(f64::INFINITY, |m, &x| m.min(x));
+        let rate = (2.0 * self.viscosity / m_min).max(self.air_drag);
+        if rate > 0.0 {
+            t = t.min(1.0 / rate);
         }
         t
     }
@@ -553,7 +673,10 @@ pub fn first_step(beads: &Beads, method: crate::scene::Method, tol: f64) -> f64 
     let tol = tol / (beads.run_length() / ts).max(FIT_LENGTH);
     let at = |(c, q): (f64, f64)| ts * (tol / c).powf(1.0 / q);
     let coarse = at(chain_error_model(method)).min(ts / MIN_STEPS_PER_SCALE);
-    match refined_error_model(method).map(at) {
+    match refined_error_model(method)
+        .filter(|_| !beads.damped() && beads.piston == 0.0)
+        .map(at)
+    {
         // Refined steps meet the tolerance from some step at or below
         // t_s/REFINE_FROM (at most that step), and coarse ones need finer
         // than that: refine.
@@ -598,7 +721,10 @@ impl Plan {
         }
         self.h = h;
         let fine = beads.time_scale() / REFINE_FROM;
-        let on = refine || h <= fine;
+        // A damped chain runs without the local refinement (its redone
+        // regions have no damping substep), and so does one with a piston
+        // (a redone region would move bead 0 past the piston's account).
+        let on = (refine || h <= fine) && !beads.damped() && beads.piston == 0.0;
         self.refine = (on && refined_error_model(self.method).is_some()).then(|| step::Refine {
             reach: step::REFINE_REACH,
             steps: step::REFINE_STEPS,

@@ -66,6 +66,82 @@ fn across<R: Real>(x: &[R], j: usize) -> R {
     l - r
 }
 
+/// δ̇ of contact j, v_{j−1} − v_j: the right wall stands still, the left
+/// one moves at the piston's speed.
+fn closing<R: Real>(c: &Consts<R>, st: &State<R>, j: usize) -> R {
+    if j == 0 && c.piston != R::zero() {
+        c.piston - st.v[0]
+    } else {
+        across(&st.v, j)
+    }
+}
+
+/// The force of contact j's dashpot (N; on bead a, pushing it back: +):
+/// γ·δ̇ while closed, never pulling harder than the spring pushes (the
+/// step's [`super::step`] `dashpot`); 0 when open or undamped.
+fn dashpot_force<R: Real>(c: &Consts<R>, st: &State<R>, j: usize) -> R {
+    let d = c.d0[j] + st.p[j];
+    match &c.damp {
+        Some(dp) if c.k[j] != R::zero() && d > R::zero() => {
+            (dp.gamma * closing(c, st, j)).max(R::zero() - super::hertz(c.k[j], d))
+        }
+        _ => R::zero(),
+    }
+}
+
+/// Bead i's acceleration (m/s²): the elastic forces' (`st.a`, what the
+/// step kicks with), plus on a damped chain its dashpots' and the air
+/// drag's, so that the observers' interpolants see the motion's own rates.
+pub fn acceleration<R: Real>(c: &Consts<R>, st: &State<R>, i: usize) -> R {
+    match &c.damp {
+        None => st.a[i],
+        Some(d) => {
+            let g = dashpot_force(c, st, i) - dashpot_force(c, st, i + 1);
+            st.a[i] + g * c.inv_mass[i] - d.drag * st.v[i]
+        }
+    }
+}
+
+/// [`acceleration`] across contact j: the rate of δ̇_j.
+fn across_acceleration<R: Real>(c: &Consts<R>, st: &State<R>, j: usize) -> R {
+    if c.damp.is_none() {
+        return across(&st.a, j);
+    }
+    let l = if j == 0 {
+        R::zero()
+    } else {
+        acceleration(c, st, j - 1)
+    };
+    let r = if j < st.v.len() {
+        acceleration(c, st, j)
+    } else {
+        R::zero()
+    };
+    l - r
+}
+
+/// The rate of bead i's acceleration from its damping (m/s³): its
+/// dashpots' γ·δ̈ and the air drag's −c·a (0 undamped).
+fn damping_jerk<R: Real>(c: &Consts<R>, st: &State<R>, i: usize) -> R {
+    let Some(d) = &c.damp else {
+        return R::zero();
+    };
+    let rate = |j: usize| {
+        let dl = c.d0[j] + st.p[j];
+        if c.k[j] == R::zero() || dl <= R::zero() {
+            return R::zero();
+        }
+        let r1 = closing(c, st, j);
+        if d.gamma * r1 < R::zero() - super::hertz(c.k[j], dl) {
+            // Slack: the dashpot's force is −k·δ^{3/2}, its rate −1.5·k·√δ·δ̇.
+            R::zero() - R::of(1.5) * c.k[j] * dl.sqrt() * r1
+        } else {
+            d.gamma * across_acceleration(c, st, j)
+        }
+    };
+    (rate(i) - rate(i + 1)) * c.inv_mass[i] - d.drag * acceleration(c, st, i)
+}
+
 /// Force of contact j and its first two rates: (F, dF/dt, d²F/dt²).
 /// d²F/dt² has a 1/√δ term: near an opening contact it is left out
 /// (the polynomial then is cubic in effect; the force there is small).
@@ -77,7 +153,7 @@ pub fn force_rates<R: Real>(c: &Consts<R>, st: &State<R>, j: usize) -> (R, R, R)
     }
     let k = c.k[j];
     let sq = d.sqrt();
-    let (r1, r2) = (across(&st.v, j), across(&st.a, j));
+    let (r1, r2) = (closing(c, st, j), across_acceleration(c, st, j));
     let (c15, c075) = (R::of(1.5), R::of(0.75));
     (
         k * d * sq,
@@ -107,7 +183,10 @@ pub fn bead_rates_with<R: Real>(
         let w = p.omega;
         jerk = jerk + p.force * w * super::step::pulse_cos(t, w) * p.inv_mass;
     }
-    (st.v[i], st.a[i], jerk)
+    if c.damp.is_some() {
+        jerk = jerk + damping_jerk(c, st, i);
+    }
+    (st.v[i], acceleration(c, st, i), jerk)
 }
 
 /// How many record peaks [`FirstPeak::see_leading`] keeps.
@@ -295,6 +374,58 @@ impl<R: Real> WallWatch<R> {
     }
 }
 
+/// The first time a quantity reaches a level (a piston's shock front at a
+/// probe: its velocity reaching half the piston's speed), located on the
+/// quintic Hermite interpolant of the step in which it does (60
+/// bisections; O(h^6), as the peaks).
+#[derive(Clone, Debug)]
+pub struct Rise<R = f64> {
+    last: Option<(R, [R; 3])>,
+    /// When it reached the level, once it has.
+    pub at: Option<R>,
+}
+
+impl<R: Real> Default for Rise<R> {
+    fn default() -> Self {
+        Rise {
+            last: None,
+            at: None,
+        }
+    }
+}
+
+impl<R: Real> Rise<R> {
+    pub fn see(&mut self, t: R, q: [R; 3], level: R) {
+        if self.at.is_some() {
+            return;
+        }
+        match self.last {
+            None if q[0] >= level => self.at = Some(t),
+            Some((t0, q0)) if q0[0] < level && q[0] >= level => {
+                let h = t - t0;
+                let c = quintic(
+                    [q0[0] - level, q[0] - level],
+                    [q0[1] * h, q[1] * h],
+                    [q0[2] * h * h, q[2] * h * h],
+                );
+                let (mut a, mut b) = (R::zero(), R::one());
+                let half = R::of(0.5);
+                for _ in 0..60 {
+                    let m = half * (a + b);
+                    if poly(&c, m) < R::zero() {
+                        a = m;
+                    } else {
+                        b = m;
+                    }
+                }
+                self.at = Some(t0 + h * (half * (a + b)));
+            }
+            _ => {}
+        }
+        self.last = Some((t, q));
+    }
+}
+
 /// A wall's largest force and its impulse (of the force above the static one).
 #[derive(Clone, Debug)]
 pub struct WallWatch<R = f64> {
@@ -384,8 +515,20 @@ pub struct ChainOutcome {
     pub energy_left: f64,
     /// Groups of beads separated by opened gaps at the end (1: one piece).
     pub fragments: usize,
-    /// Relative energy error (to the energy after the pulse, if any).
+    /// Relative energy error (to the energy after the pulse, if any): of
+    /// the energy plus what the damping took, so an error of the
+    /// integration, not of the model.
     pub energy_error: f64,
+    /// Energy the dashpots and the air drag took over the run (J; 0
+    /// without `[damping]`).
+    pub energy_dissipated: f64,
+    /// A piston's shock front speed (m/s): the distance at rest between
+    /// the first and last probe over the difference of the times their
+    /// velocity reached half the piston's speed (NaN without a piston).
+    pub shock_speed: f64,
+    /// The work the piston did on the chain (J; its speed times the
+    /// impulse it gave bead 0; 0 without one).
+    pub piston_work: f64,
     /// Relative momentum error without walls (NaN with a wall).
     pub momentum_error: f64,
     /// Largest overlap / smaller radius seen.
@@ -428,6 +571,9 @@ impl ChainOutcome {
             energy_left: f64::NAN,
             fragments: 0,
             energy_error: f64::NAN,
+            energy_dissipated: f64::NAN,
+            shock_speed: f64::NAN,
+            piston_work: f64::NAN,
             momentum_error: f64::NAN,
             max_overlap_ratio: f64::NAN,
             v: vec![],

@@ -72,7 +72,7 @@ fn run_in<R: Real>(b: &Beads, plan: &Plan, rows: &mut dyn Rows, whole: bool) -> 
     let c = Consts::<R>::of(b);
     let mut st = State::start(b, &c, w, whole, m.refine.is_some());
     let mut obs = Watch::new(b);
-    let mut e_ref = b.pulse.is_none().then(|| energy(b, &st));
+    let mut e_ref = b.pulse.is_none().then(|| budget(b, &st));
     let every = plan.every.map(|e| ((e / plan.h).round() as u64).max(1));
     let mut t = R::zero();
     rows.row(0.0, b, &st.in_f64());
@@ -101,7 +101,7 @@ fn run_in<R: Real>(b: &Beads, plan: &Plan, rows: &mut dyn Rows, whole: bool) -> 
         t = t1;
         obs.see(b, &c, &st, t);
         if e_ref.is_none() && pulse_end.is_some_and(|d| t >= d) {
-            e_ref = Some(energy(b, &st));
+            e_ref = Some(budget(b, &st));
         }
         if every.is_some_and(|e| st.steps.is_multiple_of(e)) {
             rows.row(t.to64(), b, &st.in_f64());
@@ -124,6 +124,25 @@ fn run_in<R: Real>(b: &Beads, plan: &Plan, rows: &mut dyn Rows, whole: bool) -> 
     }
     max_ratio = max_ratio.max(overlap_ratio(&c, &st, st.lo, st.hi));
     finish(b, plan, &st, obs, t, status, e_ref, max_ratio)
+}
+
+/// The energy the damping has taken so far (J; 0 without damping): each
+/// contact's and each bead's share, summed in f64 in their order.
+pub fn dissipated<R: Real>(st: &State<R>) -> f64 {
+    st.lost_c.iter().chain(&st.lost_b).map(|x| x.to64()).sum()
+}
+
+/// The work a piston has done on the chain so far (J): its speed times the
+/// impulse it gave bead 0 (0 without one).
+pub fn piston_work<R: Real>(b: &Beads, st: &State<R>) -> f64 {
+    b.piston * st.wall_imp.to64()
+}
+
+/// [`Beads::energy`] of a state plus the energy its damping took
+/// ([`dissipated`]) minus a piston's work ([`piston_work`]): what an exact
+/// run conserves, damped, pushed or not.
+pub fn budget<R: Real>(b: &Beads, st: &State<R>) -> f64 {
+    energy(b, st) + dissipated(st) - piston_work(b, st)
 }
 
 /// [`Beads::energy`] of a state in any precision.
@@ -167,6 +186,10 @@ pub struct Watch<R = f64> {
     pub width: f64,
     pub floor_v: R,
     pub floor_f: R,
+    /// Per probe, when its velocity reached half a piston's speed (none
+    /// without a piston).
+    pub rises: Vec<Rise<R>>,
+    pub rise_level: R,
 }
 
 impl<R: Real> Watch<R> {
@@ -180,6 +203,12 @@ impl<R: Real> Watch<R> {
             width: f64::NAN,
             floor_v: R::of(PEAK_FLOOR * vs),
             floor_f: R::of(PEAK_FLOOR * fs),
+            rises: if b.piston > 0.0 {
+                vec![Rise::default(); b.probes.len()]
+            } else {
+                vec![]
+            },
+            rise_level: R::of(0.5 * b.piston),
         }
     }
 
@@ -193,6 +222,9 @@ impl<R: Real> Watch<R> {
             let (fr, dr, sr) = force_rates(c, st, i + 1);
             let (v, a, j) = bead_rates_with(c, st, i, t, dl, dr);
             let taken = vp.see_leading(t, [v, a, j], self.floor_v);
+            if let Some(r) = self.rises.get_mut(k) {
+                r.see(t, [v, a, j], self.rise_level);
+            }
             let base = half * (c.f0[i] + c.f0[i + 1]);
             let q = [half * (fl + fr) - base, half * (dl + dr), half * (sl + sr)];
             fp.see_leading(t, q, self.floor_f);
@@ -302,7 +334,13 @@ pub fn finish<R: Real>(
             }
     };
     let e_end: f64 = (0..n).map(bead_energy).sum();
-    let e_in = e_ref.unwrap_or(f64::NAN);
+    let work = piston_work(b, &st);
+    // The energy put in: the start's (or the pulse's), or a piston's work
+    // if more.
+    let e_in = match e_ref {
+        Some(e) if b.piston > 0.0 => e.max(work.abs()),
+        e => e.unwrap_or(f64::NAN),
+    };
     let (er, et, el) = match (b.probes.first(), b.probes.last()) {
         (Some(&f), Some(&l)) => {
             let sum = |r: std::ops::Range<usize>| r.map(bead_energy).sum::<f64>() / e_in;
@@ -310,8 +348,24 @@ pub fn finish<R: Real>(
         }
         _ => (f64::NAN, f64::NAN, f64::NAN),
     };
-    let energy_error = ((e_end - e_in) / e_in).abs();
-    let momentum_error = if b.left_wall || b.right_wall {
+    let energy_dissipated = dissipated(&st);
+    let e_start = e_ref.unwrap_or(f64::NAN);
+    let energy_error = ((e_end + energy_dissipated - work - e_start) / e_in).abs();
+    let rises: Vec<f64> = obs
+        .rises
+        .iter()
+        .map(|r| r.at.map_or(f64::NAN, |t| t.to64()))
+        .collect();
+    let shock_speed = match (
+        b.probes.first(),
+        b.probes.last(),
+        rises.first(),
+        rises.last(),
+    ) {
+        (Some(&a), Some(&z), Some(ta), Some(tz)) if z > a => b.distance(a, z) / (tz - ta),
+        _ => f64::NAN,
+    };
+    let momentum_error = if b.left_wall || b.right_wall || b.air_drag > 0.0 {
         f64::NAN
     } else {
         let p = |v: &[f64]| b.mass.iter().zip(v).map(|(m, v)| m * v).sum::<f64>();
@@ -368,6 +422,9 @@ pub fn finish<R: Real>(
         energy_left: el,
         fragments,
         energy_error,
+        energy_dissipated,
+        shock_speed,
+        piston_work: work,
         momentum_error,
         max_overlap_ratio: max_ratio,
         v: st.v.clone(),

@@ -45,6 +45,15 @@ pub struct State<R = f64> {
     /// ([`Refine`]; diagnostics).
     pub regions: u64,
     pub region_beads: u64,
+    /// Energy the damping has taken (J) so far: by each contact's dashpot
+    /// (contacts 0 ..= n) and by each bead's air drag and the dashpots'
+    /// closing correction (beads 0 .. n); empty for an undamped chain.
+    pub lost_c: Vec<R>,
+    pub lost_b: Vec<R>,
+    /// The impulse the left wall has given bead 0 so far (N·s) when it is
+    /// a piston (0 otherwise): its kicks, kink and damping; the piston's
+    /// work is its speed times this.
+    pub wall_imp: R,
 }
 
 /// A step's scratch: its start over the window (contacts lo ..= hi, beads
@@ -62,6 +71,9 @@ pub struct Scratch<R> {
     pub imp: Vec<R>,
     /// Contacts near a crossing in this step, in order.
     pub near: Vec<usize>,
+    /// The impulse each contact's dashpot gave its bead a over the step
+    /// (N·s; damped chains only): the closing correction replaces it.
+    pub dimp: Vec<R>,
 }
 
 impl<R: Real> Scratch<R> {
@@ -77,6 +89,7 @@ impl<R: Real> Scratch<R> {
             x0: z,
             imp: vec![z; m],
             near: Vec::new(),
+            dimp: Vec::new(),
         }
     }
 
@@ -89,6 +102,7 @@ impl<R: Real> Scratch<R> {
             x0: R::zero(),
             imp: Vec::new(),
             near: Vec::new(),
+            dimp: Vec::new(),
         }
     }
 }
@@ -130,7 +144,14 @@ impl<R: Real> State<R> {
             scratch: Scratch::new(n, refine),
             regions: 0,
             region_beads: 0,
+            lost_c: Vec::new(),
+            lost_b: Vec::new(),
+            wall_imp: zero,
         };
+        if c.damp.is_some() {
+            (s.lost_c, s.lost_b) = (vec![zero; n + 1], vec![zero; n]);
+            s.scratch.dimp = vec![zero; n + 1];
+        }
         forces(c, &mut s, zero, pulse_on(c, zero), None);
         if !whole {
             s.shrink(c, weights.len(), zero);
@@ -158,25 +179,35 @@ impl<R: Real> State<R> {
             scratch: Scratch::none(),
             regions: self.regions,
             region_beads: self.region_beads,
+            lost_c: conv(&self.lost_c),
+            lost_b: conv(&self.lost_b),
+            wall_imp: self.wall_imp.to64(),
         })
     }
 
     /// Re-fit the window around the moving beads (`t`: the time now).
     fn shrink(&mut self, c: &Consts<R>, stages: usize, t: R) {
-        // The pulse's bead stays in while the next step (from t) feels it.
+        // The pulse's bead stays in while the next step (from t) feels it,
+        // and a piston's first bead always (the piston may reach it).
         let pulse = c.pulse.as_ref().filter(|_| pulse_on(c, t)).map(|p| p.bead);
+        let piston = (c.piston != R::zero()).then_some(0);
         let zero = R::zero();
-        let moving = |i: usize| self.v[i] != zero || self.a[i] != zero || Some(i) == pulse;
+        let moving = |i: usize| {
+            self.v[i] != zero || self.a[i] != zero || Some(i) == pulse || Some(i) == piston
+        };
         let first = (self.lo..self.hi).find(|&i| moving(i));
         let Some(first) = first else {
             (self.lo, self.hi) = (0, 0);
-            if let Some(i) = pulse {
+            if let Some(i) = pulse.or(piston) {
                 (self.lo, self.hi) = (i, i + 1);
             }
             return;
         };
         let last = (first..self.hi).rev().find(|&i| moving(i)).unwrap_or(first);
-        let m = stages + 1 + MARGIN_EXTRA;
+        // A damping substep's three sweeps of dashpots reach three beads
+        // further per substep ([`damp`]).
+        let reach = if c.damp.is_some() { 4 } else { 1 };
+        let m = stages * reach + 1 + MARGIN_EXTRA;
         let pulse_lo = pulse.unwrap_or(usize::MAX);
         self.lo = first.min(pulse_lo).saturating_sub(m);
         self.hi = (last.max(pulse.unwrap_or(0)) + 1 + m).min(self.v.len());
@@ -288,9 +319,10 @@ fn kick<R: Real>(s: &mut State<R>, c: R) {
     }
 }
 
-/// p_j += dt·(v_{j−1} − v_j) for contacts lo ..= hi (walls do not move).
+/// p_j += dt·(v_{j−1} − v_j) for contacts lo ..= hi (the right wall
+/// stands still, the left one moves at `piston`).
 #[inline(always)]
-fn drift<R: Real>(s: &mut State<R>, dt: R) {
+fn drift<R: Real>(s: &mut State<R>, dt: R, piston: R) {
     let n = s.v.len();
     let (lo, hi) = (s.lo, s.hi);
     if lo == hi {
@@ -304,7 +336,11 @@ fn drift<R: Real>(s: &mut State<R>, dt: R) {
         }
     }
     if lo == 0 {
-        s.p[0] = s.p[0] - dt * s.v[0];
+        if piston == R::zero() {
+            s.p[0] = s.p[0] - dt * s.v[0];
+        } else {
+            s.p[0] = s.p[0] + dt * (piston - s.v[0]);
+        }
         s.x0 = s.x0 + dt * s.v[0];
     }
     if hi == n {
@@ -434,7 +470,11 @@ fn miss<R: Real>(
     kicks: &[f64],
 ) -> Option<R> {
     let ps = s.scratch.p[j];
-    crosses(c.d0[j], c.k[j], ps, s.p[j]).then(|| {
+    // With dashpots a contact is slack before it opens ([`dashpot`]: its
+    // spring and its dashpot cancel): its spring's kink at δ = 0 is not
+    // felt, and the dashpot's cut would take back a correction here.
+    let slack = c.damp.as_ref().is_some_and(|d| d.gamma != R::zero()) && c.d0[j] + ps > R::zero();
+    (!slack && crosses(c.d0[j], c.k[j], ps, s.p[j])).then(|| {
         let (d0, d1) = (c.d0[j] + ps, c.d0[j] + s.p[j]);
         crate::engine::cradle::kink_impulse_error(c.k[j], d0, d1, w, kicks) * h
     })
@@ -482,8 +522,11 @@ fn step_portable<R: Real>(c: &Consts<R>, s: &mut State<R>, t0: R, h: R, m: &Subs
     let refine = m.refine.filter(|_| m.kicks.is_some());
     let (lo, hi) = (s.lo, s.hi);
     let c0 = half * R::of(w[0]) * h;
-    if m.kicks.is_some() {
+    if m.kicks.is_some() || c.damp.is_some() {
         s.scratch.p[lo..=hi].copy_from_slice(&s.p[lo..=hi]);
+    }
+    if c.damp.is_some() {
+        s.scratch.dimp[lo..=hi].fill(R::zero());
     }
     if refine.is_some() {
         let sc = &mut s.scratch;
@@ -494,13 +537,33 @@ fn step_portable<R: Real>(c: &Consts<R>, s: &mut State<R>, t0: R, h: R, m: &Subs
             *i = c0 * e;
         }
     }
+    let piston = c.piston != R::zero();
+    // A piston's bead 0 is always in the window (`shrink`): contact 0's
+    // force is what each kick gives it.
+    let wall = |s: &State<R>| s.e[0] + c.f0[0];
+    if piston {
+        s.wall_imp = s.wall_imp + c0 * wall(s);
+    }
     kick(s, c0);
     for (j, &wj) in w.iter().enumerate() {
         let wj = R::of(wj);
-        drift(s, wj * h);
+        match &c.damp {
+            None => drift(s, wj * h, c.piston),
+            Some(d) => {
+                // Drift, damp, drift: a symmetric substep, so the
+                // composition keeps its order ([`damp`]).
+                let tau = wj * h;
+                drift(s, half * tau, c.piston);
+                damp(c, d, s, tau);
+                drift(s, half * tau, c.piston);
+            }
+        }
         t = t + wj * h;
         let k = kick_weight(w, j, h);
         forces(c, s, t, on, refine.map(|_| k));
+        if piston {
+            s.wall_imp = s.wall_imp + k * wall(s);
+        }
         kick(s, k);
     }
     if let Some(kicks) = m.kicks {
@@ -525,6 +588,11 @@ fn step_portable<R: Real>(c: &Consts<R>, s: &mut State<R>, t0: R, h: R, m: &Subs
             }
         }
         if any {
+            if piston {
+                if let Some(x) = miss(c, s, 0, h, w, kicks) {
+                    s.wall_imp = s.wall_imp + x;
+                }
+            }
             kinks(c, s, (lo, hi), h, w, kicks);
             if let Some(r) = refine {
                 for j in lo..=hi {
@@ -536,9 +604,168 @@ fn step_portable<R: Real>(c: &Consts<R>, s: &mut State<R>, t0: R, h: R, m: &Subs
             }
         }
     }
+    if let Some(d) = &c.damp {
+        if piston {
+            // Bead 0 is contact 0's bead b: it takes minus the dashpot's
+            // impulse on the wall, and minus its closing correction.
+            let x = closing_correction(c, d, s, 0).unwrap_or(R::zero());
+            s.wall_imp = s.wall_imp - s.scratch.dimp[0] - x;
+        }
+        crossings(c, d, s);
+    }
     s.steps += 1;
     if !whole {
         s.shrink(c, w.len(), t0 + h);
+    }
+}
+
+/// The damping substep of length `tau` (docs/SPEC.md §9, "Damping"), at
+/// the positions of the drift's middle: the flow of the dashpots and the
+/// air drag with the overlaps frozen, a linear ODE in the velocities,
+/// approximated by a symmetric product of exactly solvable parts — the air
+/// drag for τ/2, the even contacts for τ/2, the odd ones for τ, the even
+/// ones for τ/2, the air drag for τ/2 (contacts of one parity share no
+/// bead) — each part by the Cayley map x ↦ (2 − x)/(2 + x) of its decay
+/// (second order, symmetric: its inverse is itself at −τ). A drift–damp–
+/// drift substep is then symmetric and of order 2 like the Verlet one it
+/// replaces, and the compositions keep their orders.
+#[inline(always)]
+fn damp<R: Real>(c: &Consts<R>, d: &super::DampConsts<R>, s: &mut State<R>, tau: R) {
+    let zero = R::zero();
+    let half = R::of(0.5) * tau;
+    if d.drag != zero {
+        drag(d, s, half);
+    }
+    if d.gamma != zero {
+        for (parity, t) in [(0, half), (1, tau), (0, half)] {
+            let mut j = s.lo + (s.lo + parity) % 2;
+            while j <= s.hi {
+                dashpot(c, d, s, j, t);
+                j += 2;
+            }
+        }
+    }
+    if d.drag != zero {
+        drag(d, s, half);
+    }
+}
+
+/// The impulse on bead a that contact j's dashpot missed in the step, if it
+/// closed in it ([`crossings`]): −γ·δ_end minus what the substeps gave.
+#[inline(always)]
+fn closing_correction<R: Real>(
+    c: &Consts<R>,
+    d: &super::DampConsts<R>,
+    s: &State<R>,
+    j: usize,
+) -> Option<R> {
+    let zero = R::zero();
+    let (a, b) = (c.d0[j] + s.scratch.p[j], c.d0[j] + s.p[j]);
+    (d.gamma != zero && a <= zero && b > zero && c.k[j] != zero)
+        .then(|| -(d.gamma * b) - s.scratch.dimp[j])
+}
+
+/// The air drag for `t`: every moving bead's velocity times the Cayley map
+/// of c·t, the kinetic energy it loses kept per bead.
+#[inline(always)]
+fn drag<R: Real>(d: &super::DampConsts<R>, s: &mut State<R>, t: R) {
+    let (zero, two, half) = (R::zero(), R::of(2.0), R::of(0.5));
+    let x = d.drag * t;
+    let f = (two - x) / (two + x);
+    for i in s.lo..s.hi {
+        let v = s.v[i];
+        if v != zero {
+            let vn = v * f;
+            s.v[i] = vn;
+            s.lost_b[i] = s.lost_b[i] + half * d.mass[i] * (v * v - vn * vn);
+        }
+    }
+}
+
+/// Contact j's dashpot for `t` with its overlap frozen: while closed, its
+/// beads' relative velocity w = v_a − v_b decays as dw/dt = −β·w (β =
+/// γ·(1/m_a + 1/m_b)), their momentum kept, by the Cayley map of β·t.
+/// Never pulling: where the beads part (w < 0) the dashpot's pull over `t`
+/// is at most what the spring pushes over it, k·δ^{3/2}·t at this
+/// position, so the contact's force, spring and dashpot, stays ≥ 0 (near
+/// the end of every contact, as δ → 0, the pull is cut so: the contact is
+/// slack, the two parts cancel to O(h²) between the kicks' quadrature of
+/// the spring and this one). The kinetic energy it takes is kept per
+/// contact, the impulse on bead a in `scratch.dimp`.
+#[inline(always)]
+fn dashpot<R: Real>(c: &Consts<R>, d: &super::DampConsts<R>, s: &mut State<R>, j: usize, t: R) {
+    let (zero, two, half) = (R::zero(), R::of(2.0), R::of(0.5));
+    let dl = c.d0[j] + s.p[j];
+    if dl <= zero || c.k[j] == zero {
+        return;
+    }
+    let n = s.v.len();
+    // The left wall moves at `piston`.
+    let va = if j > 0 { s.v[j - 1] } else { c.piston };
+    let vb = if j < n { s.v[j] } else { zero };
+    let w = va - vb;
+    if w == zero {
+        return;
+    }
+    let x = d.beta[j] * t;
+    let mut wn = w * (two - x) / (two + x);
+    if (wn - w) * t > zero {
+        // Pulling over this substep (for t < 0, a substep back in time,
+        // the same with the signs turned): at most the spring's push.
+        let lim = w + hertz(c.k[j], dl) * t * d.inv_mu[j];
+        if (wn - lim) * t > zero {
+            wn = lim;
+        }
+    }
+    let dw = wn - w;
+    if j > 0 {
+        s.v[j - 1] = va + dw * d.share_a[j];
+    }
+    if j < n {
+        s.v[j] = vb - dw * d.share_b[j];
+    }
+    s.lost_c[j] = s.lost_c[j] + half * d.mu[j] * (w * w - wn * wn);
+    s.scratch.dimp[j] = s.scratch.dimp[j] + d.mu[j] * dw;
+}
+
+/// The dashpots' closing correction after a step: a contact that closed in
+/// it (δ ≤ 0 at the start, > 0 at the end) switched its dashpot on at an
+/// instant inside the step that the damping substeps, frozen at their
+/// positions, only see at their own: its force jumps there from 0 to γ·δ̇,
+/// and the step would err by O(h) at each closing. A closing contact is
+/// never slack (δ̇ > 0: its dashpot pushes), so the impulse it gave bead a over the
+/// step is exactly −γ·δ_end (∫γ·δ̇ dt over the closed part); each closing
+/// contact's beads get that minus what the substeps gave
+/// (`scratch.dimp`), bead by bead (its left contact's share, then its
+/// right one's), as the GPU kernel's invocations do; the kinetic energy
+/// this takes is kept per bead. (An opening contact is slack before it
+/// opens, its force continuous: nothing to correct.)
+#[inline(always)]
+fn crossings<R: Real>(c: &Consts<R>, d: &super::DampConsts<R>, s: &mut State<R>) {
+    let zero = R::zero();
+    if d.gamma == zero {
+        return;
+    }
+    let (lo, hi) = (s.lo, s.hi);
+    let closed = |s: &State<R>, j: usize| closing_correction(c, d, s, j);
+    if !(lo..=hi).any(|j| closed(s, j).is_some()) {
+        return;
+    }
+    let half = R::of(0.5);
+    for i in lo..hi {
+        let v = s.v[i];
+        let mut vn = v;
+        // Bead i is contact i's bead b and contact i + 1's bead a.
+        if let Some(x) = closed(s, i) {
+            vn = vn - x * c.inv_mass[i];
+        }
+        if let Some(x) = closed(s, i + 1) {
+            vn = vn + x * c.inv_mass[i];
+        }
+        if vn != v {
+            s.v[i] = vn;
+            s.lost_b[i] = s.lost_b[i] + half * d.mass[i] * (v * v - vn * vn);
+        }
     }
 }
 
