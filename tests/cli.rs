@@ -1179,7 +1179,11 @@ fn a_damping_and_piston_sweep_writes_their_columns() {
     success(&["sweep", &sweep, "--out", &out, "--backend", "cpu"]);
     let mut r = csv::Reader::from_path(&out).unwrap();
     let h: Vec<String> = r.headers().unwrap().iter().map(String::from).collect();
-    let col = |name: &str| h.iter().position(|c| c == name).unwrap_or_else(|| panic!("{name} in {h:?}"));
+    let col = |name: &str| {
+        h.iter()
+            .position(|c| c == name)
+            .unwrap_or_else(|| panic!("{name} in {h:?}"))
+    };
     let (g, u, lost, speed, work, status) = (
         col("damping.viscosity"),
         col("piston.velocity"),
@@ -1200,7 +1204,7 @@ fn a_damping_and_piston_sweep_writes_their_columns() {
     }
     // Rows are row-major: viscosity outer, piston inner.
     assert!(num(&rows[4], lost) > num(&rows[2], lost) && num(&rows[2], lost) > 0.0);
-    assert!(num(&rows[3], speed) > num(&rows[2], speed));
+    assert!(num(&rows[3], u) > num(&rows[2], u) && num(&rows[3], speed) > num(&rows[2], speed));
     if std::env::var_os("CRADLE_REQUIRE_GPU").is_some() {
         let gpu = dir.path().join("gpu.csv").display().to_string();
         success(&["sweep", &sweep, "--out", &gpu, "--backend", "gpu"]);

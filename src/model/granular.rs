@@ -41,10 +41,11 @@ pub struct Granular {
 
 impl Granular {
     /// Chains of at most `most_beads` beads with the base scene's `probes`
-    /// (`damped`: some may dissipate; `piston`: some have a piston).
-    pub fn new(probes: Vec<usize>, most_beads: usize, damped: bool, piston: bool) -> Granular {
+    /// (`kinds`: some may dissipate, have a piston, be driven:
+    /// [`Columns::for_chains`]).
+    pub fn new(probes: Vec<usize>, most_beads: usize, kinds: [bool; 3]) -> Granular {
         Granular {
-            cols: Arc::new(Columns::for_chains(probes, most_beads, damped, piston)),
+            cols: Arc::new(Columns::for_chains(probes, most_beads, kinds)),
             most_beads,
         }
     }

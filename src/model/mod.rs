@@ -163,11 +163,11 @@ pub fn of(base: &Scene, varied: &Varied) -> Arc<dyn Model> {
                 || c.air_drag > 0.0
                 || varied.any(&["damping.viscosity", "damping.air_drag"]);
             let piston = c.piston > 0.0 || varied.any(&["piston.velocity"]);
+            let drive = c.pulse.as_ref().is_some_and(|p| p.is_drive());
             Arc::new(granular::Granular::new(
                 c.probes.clone(),
                 width,
-                damped,
-                piston,
+                [damped, piston, drive],
             ))
         }
         None => Arc::new(cradle::Cradle::new(base.n, width, pendulum)),
@@ -192,6 +192,6 @@ pub fn mixed_sweep(base: &Scene) -> String {
     format!(
         "a scene like the base scene: the base scene is {base} and this value makes {value} \
          (a sweep's scenes are all cradles or all granular chains; a chain of at most 64 beads \
-         is one when it has [walls], [pulse], [probes], [record], [pattern], [taper], [impurity], [gravity] or [piston])"
+         is one when it has [walls], [pulse], [probes], [record], [pattern], [taper], [impurity], [gravity], [piston] or [drive])"
     )
 }

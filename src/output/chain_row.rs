@@ -21,6 +21,9 @@ pub struct Columns {
     /// Whether it has `shock_speed` and `piston_work` (after
     /// `pulse_width`): a chain with a piston's.
     pub piston: bool,
+    /// Whether each probe has `amplitude_<b>` (after its `peak_f_<b>`): a
+    /// driven chain's.
+    pub drive: bool,
 }
 
 /// The columns after the per-bead ones, in order.
@@ -47,18 +50,18 @@ const TAIL: [&str; 17] = [
 impl Columns {
     /// The columns of one chain's row (`cradle run`).
     pub fn of(b: &Beads) -> Columns {
-        Self::for_chains(b.probes.clone(), b.n, b.damped(), b.piston > 0.0)
+        let drive = b.pulse.as_ref().is_some_and(|p| p.is_drive());
+        Self::for_chains(b.probes.clone(), b.n, [b.damped(), b.piston > 0.0, drive])
     }
 
     /// The columns of a table of chains of at most `most_beads` beads with
-    /// these probe beads (a sweep's: the base scene's probes); `damped`:
-    /// with `energy_dissipated`; `piston`: with `shock_speed` and
-    /// `piston_work`.
+    /// these probe beads (a sweep's: the base scene's probes); `[damped,
+    /// piston, drive]`: with `energy_dissipated`, with `shock_speed` and
+    /// `piston_work`, with `amplitude_<b>`.
     pub fn for_chains(
         probes: Vec<usize>,
         most_beads: usize,
-        damped: bool,
-        piston: bool,
+        [damped, piston, drive]: [bool; 3],
     ) -> Columns {
         let velocities = if most_beads <= MAX_BALLS {
             (0..most_beads).collect()
@@ -70,6 +73,7 @@ impl Columns {
             velocities,
             damped,
             piston,
+            drive,
         }
     }
 
@@ -79,6 +83,9 @@ impl Columns {
         for p in &self.probes {
             for c in ["arrival", "peak_v", "peak_f"] {
                 h.push(format!("{c}_{p}"));
+            }
+            if self.drive {
+                h.push(format!("amplitude_{p}"));
             }
         }
         h.extend(self.velocities.iter().map(|i| format!("v_{i}")));
@@ -102,7 +109,7 @@ impl Columns {
 
     /// Number of columns ([`Columns::header`]'s length).
     pub fn width(&self) -> usize {
-        1 + 3 * self.probes.len()
+        1 + (3 + self.drive as usize) * self.probes.len()
             + self.velocities.len()
             + TAIL.len()
             + self.damped as usize
@@ -125,7 +132,7 @@ impl Columns {
         let mut t = vec![Status];
         t.extend(std::iter::repeat_n(
             Num,
-            3 * self.probes.len() + self.velocities.len(),
+            (3 + self.drive as usize) * self.probes.len() + self.velocities.len(),
         ));
         t.extend(self.tail().map(|c| match c {
             "fragments" | "steps" => Int,
@@ -151,10 +158,13 @@ impl Columns {
         let num = |x: f64, out: &mut dyn FnMut(Field)| {
             out(if garbage { Field::Null } else { Field::Num(x) })
         };
-        for p in &o.probes {
+        for (k, p) in o.probes.iter().enumerate() {
             num(p.arrival, out);
             num(p.peak_velocity, out);
             num(p.peak_force, out);
+            if self.drive {
+                num(o.amplitudes.get(k).copied().unwrap_or(f64::NAN), out);
+            }
         }
         for &i in &self.velocities {
             match o.v.get(i) {

@@ -56,6 +56,7 @@ impl SceneSpec {
             || self.impurity.is_some()
             || self.gravity.is_some()
             || self.piston.is_some()
+            || self.drive.is_some()
     }
 
     /// Glue and a pendulum belong to the cradle engine: a chain refuses
@@ -64,7 +65,7 @@ impl SceneSpec {
         let why = if n > MAX_BALLS {
             format!("a chain of {n} beads (above {MAX_BALLS}: a granular chain)")
         } else {
-            "a granular chain (a scene with [walls], [pulse], [record], [probes], [pattern], [taper], [impurity], [gravity] or [piston])".to_string()
+            "a granular chain (a scene with [walls], [pulse], [record], [probes], [pattern], [taper], [impurity], [gravity], [piston] or [drive])".to_string()
         };
         if self.glue.as_deref().is_some_and(|g| g.contains('=')) {
             return Err(c.err(
@@ -327,6 +328,71 @@ impl SceneSpec {
         Ok((g.unwrap_or(0.0), drag.unwrap_or(0.0)))
     }
 
+    /// `[drive]`: F·sin(2π·f·t) on one bead for 0 ≤ t < `duration` (default
+    /// and at most: the run's `[stop] duration`, which a drive needs).
+    fn drive_of(
+        &self,
+        c: &Check,
+        d: &super::spec::DriveSpec,
+        n: usize,
+        duration: Option<f64>,
+    ) -> Result<Pulse, InputError> {
+        let missing = |key: &str, help: &str| InputError::Missing {
+            origin: self.origin.clone(),
+            line: self.line_of("drive"),
+            key: key.into(),
+            help: help.into(),
+        };
+        let bead = match d.bead {
+            None => 0,
+            Some(b) if (0..n as i64).contains(&b) => b as usize,
+            Some(b) => {
+                return Err(c.err("drive.bead", b, format!("a bead index in 0 ..= {}", n - 1)))
+            }
+        };
+        let force = match d.force {
+            Some(f) => c.num(
+                "drive.force",
+                f,
+                |f| f != 0.0 && f.is_finite(),
+                "a finite force ≠ 0 (N)",
+            )?,
+            None => return Err(missing("drive.force", "the drive's amplitude (N)")),
+        };
+        let frequency = match d.frequency {
+            Some(f) => c.num(
+                "drive.frequency",
+                f,
+                |f| f > 0.0 && f.is_finite(),
+                "a finite frequency > 0 (Hz)",
+            )?,
+            None => return Err(missing("drive.frequency", "the drive's frequency (Hz)")),
+        };
+        let Some(run) = duration else {
+            return Err(missing(
+                "stop.duration",
+                "how long the run lasts (s): a drive's response is measured over its second half",
+            ));
+        };
+        let tau = match d.duration {
+            Some(t) => c.num("drive.duration", t, positive, "must be a time > 0 (s)")?,
+            None => run,
+        };
+        if tau > run {
+            return Err(c.err(
+                "drive.duration",
+                tau,
+                format!("at most the run's `[stop] duration` = {run} s"),
+            ));
+        }
+        Ok(Pulse {
+            bead,
+            force,
+            duration: tau,
+            frequency,
+        })
+    }
+
     /// `[piston] velocity` (m/s, finite, > 0): the left wall moves into the
     /// chain from t = 0; it needs that wall, and a `[stop] duration` (its
     /// push never ends, so no pulse reaching the far end ends the run).
@@ -433,6 +499,16 @@ impl SceneSpec {
         if let Some(p) = &self.pulse {
             setup.pulse = Some(self.pulse_of(c, p, n, duration)?);
         }
+        if let Some(d) = &self.drive {
+            if self.pulse.is_some() {
+                return Err(c.err(
+                    "drive",
+                    "[drive] beside [pulse]",
+                    "one force on a bead: a [pulse] or a [drive], not both",
+                ));
+            }
+            setup.pulse = Some(self.drive_of(c, d, n, duration)?);
+        }
         if let Some(r) = &self.record {
             let beads = match (&r.beads, r.stride) {
                 (Some(_), Some(k)) => {
@@ -537,6 +613,7 @@ impl SceneSpec {
             bead,
             force,
             duration: tau,
+            frequency: 0.0,
         })
     }
 }

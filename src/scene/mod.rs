@@ -160,12 +160,36 @@ pub struct Pulse {
     pub force: f64,
     /// Duration τ (s).
     pub duration: f64,
+    /// A `[drive]`'s frequency f (Hz): F·sin(2π·f·t) for 0 ≤ t < τ; 0: a
+    /// `[pulse]`, the half sine F·sin(πt/τ).
+    #[serde(skip_serializing_if = "crate::scene::is_zero")]
+    pub frequency: f64,
 }
 
 impl Pulse {
-    /// ω = π/τ (1/s): the force is F·sin(ωt).
+    /// ω (1/s): the force is F·sin(ωt); π/τ for a pulse, 2π·f for a drive.
     pub fn omega(&self) -> f64 {
-        std::f64::consts::PI / self.duration
+        if self.frequency > 0.0 {
+            std::f64::consts::TAU * self.frequency
+        } else {
+            std::f64::consts::PI / self.duration
+        }
+    }
+
+    /// Whether it is a `[drive]` (a harmonic force over many periods).
+    pub fn is_drive(&self) -> bool {
+        self.frequency > 0.0
+    }
+
+    /// The impulse it gives its bead over its whole duration (N·s):
+    /// 2Fτ/π for a pulse, F·(1 − cos ωτ)/ω for a drive.
+    pub fn impulse(&self) -> f64 {
+        let w = self.omega();
+        if self.is_drive() {
+            self.force * (1.0 - (w * self.duration).cos()) / w
+        } else {
+            2.0 * self.force * self.duration / std::f64::consts::PI
+        }
     }
 }
 

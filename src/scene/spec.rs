@@ -155,6 +155,17 @@ pub struct PistonSpec {
     pub velocity: Option<f64>,
 }
 
+/// `[drive]`: a harmonic force F·sin(2π·f·t) (N) on one bead for
+/// 0 ≤ t < `duration` (s; default: the whole run) (issue #45).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DriveSpec {
+    pub bead: Option<i64>,
+    pub force: Option<f64>,
+    pub frequency: Option<f64>,
+    pub duration: Option<f64>,
+}
+
 /// `[pulse]`: a half-sine force (N) on one bead for `duration` (s).
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -245,6 +256,7 @@ pub(crate) struct RawScene {
     impurity: Option<Spanned<ImpuritySpec>>,
     gravity: Option<Spanned<GravitySpec>>,
     piston: Option<Spanned<PistonSpec>>,
+    drive: Option<Spanned<DriveSpec>>,
 }
 
 /// A scene as written: every key optional until [`SceneSpec::validate`].
@@ -285,6 +297,8 @@ pub struct SceneSpec {
     pub gravity: Option<GravitySpec>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub piston: Option<PistonSpec>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub drive: Option<DriveSpec>,
     /// Where the scene came from (a path, or `built-in scene NAME`).
     #[serde(skip)]
     pub origin: String,
@@ -340,6 +354,7 @@ impl SceneSpec {
             impurity: take(src, &mut l, "impurity", r.impurity),
             gravity: take(src, &mut l, "gravity", r.gravity),
             piston: take(src, &mut l, "piston", r.piston),
+            drive: take(src, &mut l, "drive", r.drive),
             origin: src.name.clone(),
             lines: l,
         })

@@ -221,13 +221,17 @@ impl SceneSpec {
                     "give `velocity` or `[launch]`, not both",
                 ))
             }
-            // A pulse or a piston excites a chain at rest.
-            (None, None) if self.pulse.is_some() || self.piston.is_some() => vec![0.0; n],
+            // A pulse, a drive or a piston excites a chain at rest.
+            (None, None)
+                if self.pulse.is_some() || self.piston.is_some() || self.drive.is_some() =>
+            {
+                vec![0.0; n]
+            }
             (None, None) => {
                 // A chain with nothing to move it would stay at rest: say
                 // what can move it (a pulse, unlike a cradle).
                 let help = if self.is_chain(n) {
-                    "a chain needs something to move it: `velocity = [...]` (m/s, one per bead), a `[launch]` table, a `[pulse]` or a `[piston]` (with precompression alone it stays at rest)"
+                    "a chain needs something to move it: `velocity = [...]` (m/s, one per bead), a `[launch]` table, a `[pulse]`, a `[drive]` or a `[piston]` (with precompression alone it stays at rest)"
                 } else {
                     "give `velocity = [...]` (m/s, one per ball) or a `[launch]` table"
                 };

@@ -76,6 +76,10 @@ pub const PARAMS: &[(&str, Kind)] = &[
     ("damping.viscosity", Kind::Number),
     ("damping.air_drag", Kind::Number),
     ("piston.velocity", Kind::Number),
+    ("drive.bead", Kind::Integer),
+    ("drive.force", Kind::Number),
+    ("drive.frequency", Kind::Number),
+    ("drive.duration", Kind::Number),
 ];
 
 /// A parsed `param` string: name, kind and optional index.
@@ -537,6 +541,10 @@ pub fn apply(spec: &mut SceneSpec, base: &Scene, p: &Param, value: &Value) {
                 .get_or_insert_with(DampingSpec::default)
                 .air_drag = Some(num)
         }
+        "drive.bead" => drive(spec).bead = Some(num as i64),
+        "drive.force" => drive(spec).force = Some(num),
+        "drive.frequency" => drive(spec).frequency = Some(num),
+        "drive.duration" => drive(spec).duration = Some(num),
         "piston.velocity" => {
             spec.piston
                 .get_or_insert_with(crate::scene::spec::PistonSpec::default)
@@ -563,6 +571,10 @@ fn walls(spec: &mut SceneSpec) -> &mut WallsSpec {
 
 fn pulse(spec: &mut SceneSpec) -> &mut PulseSpec {
     spec.pulse.get_or_insert_with(PulseSpec::default)
+}
+
+fn drive(spec: &mut SceneSpec) -> &mut crate::scene::spec::DriveSpec {
+    spec.drive.get_or_insert_with(Default::default)
 }
 
 fn impurity(spec: &mut SceneSpec) -> &mut ImpuritySpec {

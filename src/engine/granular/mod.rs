@@ -217,6 +217,9 @@ pub struct PulseConsts<R> {
     pub duration: R,
     /// 1/m of its bead.
     pub inv_mass: R,
+    /// A drive's frequency f (Hz; its force is F·sin(2π·f·t),
+    /// [`step::push_sin`]); 0 for a half-sine pulse.
+    pub cycles: R,
 }
 
 impl<R: Real> Consts<R> {
@@ -238,6 +241,7 @@ impl<R: Real> Consts<R> {
                 omega: R::of(p.omega()),
                 duration: R::of(p.duration),
                 inv_mass: R::of(b.inv_mass[p.bead]),
+                cycles: R::of(p.frequency),
             }),
             damp: b.damped().then(|| DampConsts::of(b)),
             piston: R::of(b.piston),
@@ -337,9 +341,9 @@ impl Beads {
     }
 
     /// Whether only the CPU engine runs this chain: the GPU kernel has no
-    /// damping substep and no piston yet (issue #45).
+    /// damping substep, no piston and no drive yet (issue #45).
     pub fn cpu_only(&self) -> bool {
-        self.damped() || self.piston > 0.0
+        self.damped() || self.piston > 0.0 || self.pulse.as_ref().is_some_and(|p| p.is_drive())
     }
 
     /// The speed every velocity error is relative to (m/s): the largest
@@ -348,7 +352,12 @@ impl Beads {
     pub fn v_scale(&self) -> f64 {
         let v = self.v0.iter().fold(self.piston, |m, v| m.max(v.abs()));
         let p = self.pulse.as_ref().map_or(0.0, |p| {
-            2.0 * p.force.abs() * p.duration / std::f64::consts::PI * self.inv_mass[p.bead]
+            if p.is_drive() {
+                // A free bead driven at ω swings at F/(m·ω).
+                p.force.abs() / p.omega() * self.inv_mass[p.bead]
+            } else {
+                2.0 * p.force.abs() * p.duration / std::f64::consts::PI * self.inv_mass[p.bead]
+            }
         });
         v.max(p)
     }
@@ -387,7 +396,12 @@ impl Beads {
             }
         }
         if let Some(p) = &self.pulse {
-            t = t.min(p.duration / std::f64::consts::PI);
+            // τ/π for a pulse, 1/ω for a drive.
+            t = t.min(if p.is_drive() {
+                1.0 / p.omega()
+            } else {
+                p.duration / std::f64::consts::PI
+            });
         }
         // Damping: the fastest decay of a contact's relative velocity,
         // γ·(1/m_a + 1/m_b) ≤ 2γ/m_min, and the air drag's rate.

@@ -181,7 +181,7 @@ pub fn bead_rates_with<R: Real>(
     let mut jerk = (left - right) * c.inv_mass[i];
     if let Some(p) = c.pulse.as_ref().filter(|p| p.bead == i && t < p.duration) {
         let w = p.omega;
-        jerk = jerk + p.force * w * super::step::pulse_cos(t, w) * p.inv_mass;
+        jerk = jerk + p.force * w * super::step::push_cos(p, t) * p.inv_mass;
     }
     if c.damp.is_some() {
         jerk = jerk + damping_jerk(c, st, i);
@@ -426,6 +426,70 @@ impl<R: Real> Rise<R> {
     }
 }
 
+/// A drive's steady response at a bead: the amplitude of the bead's
+/// velocity at the drive's frequency f over the window [from, end] (the
+/// run's second half), by a lock-in with a Hann window w:
+/// A = 2·|∫ v·w·e^{−iωt} dt| / ∫ w dt (trapezoids on the steps; the window
+/// keeps the transient's other frequencies — a drive switched on at t = 0
+/// rings the whole band — out to ~1e-4 of their size, where a largest |v|
+/// would take them in).
+#[derive(Clone, Debug)]
+pub struct Amplitude<R = f64> {
+    /// The last step's t and v·w·(cos, sin), and w.
+    last: Option<(R, [R; 3])>,
+    /// ∫ v·w·cos ωt, ∫ v·w·sin ωt, ∫ w.
+    sums: [R; 3],
+    pub from: R,
+    pub end: R,
+    pub frequency: R,
+}
+
+impl<R: Real> Amplitude<R> {
+    pub fn new(from: f64, end: f64, frequency: f64) -> Amplitude<R> {
+        Amplitude {
+            last: None,
+            sums: [R::zero(); 3],
+            from: R::of(from),
+            end: R::of(end),
+            frequency: R::of(frequency),
+        }
+    }
+
+    /// The bead's velocity `v` at `t` (steps at or after `from` count).
+    pub fn see(&mut self, t: R, v: R) {
+        use super::step::cycle_sin;
+        if t < self.from {
+            return;
+        }
+        let x = (t - self.from) / (self.end - self.from);
+        let hann = cycle_sin(R::of(0.5) * x);
+        let w = hann * hann;
+        let phase = self.frequency * t;
+        let now = [
+            v * w * cycle_sin(phase + R::of(0.25)),
+            v * w * cycle_sin(phase),
+            w,
+        ];
+        if let Some((t0, q0)) = self.last {
+            let h = R::of(0.5) * (t - t0);
+            for k in 0..3 {
+                self.sums[k] = self.sums[k] + h * (q0[k] + now[k]);
+            }
+        }
+        self.last = Some((t, now));
+    }
+
+    /// The amplitude (m/s; 0 before the window has two steps).
+    pub fn value(&self) -> f64 {
+        let [c, s, w] = self.sums.map(|x| x.to64());
+        if w > 0.0 {
+            2.0 * (c * c + s * s).sqrt() / w
+        } else {
+            0.0
+        }
+    }
+}
+
 /// A wall's largest force and its impulse (of the force above the static one).
 #[derive(Clone, Debug)]
 pub struct WallWatch<R = f64> {
@@ -529,6 +593,10 @@ pub struct ChainOutcome {
     /// The work the piston did on the chain (J; its speed times the
     /// impulse it gave bead 0; 0 without one).
     pub piston_work: f64,
+    /// Under a drive, each probe's velocity amplitude at the drive's
+    /// frequency over the run's second half (m/s; [`Amplitude`]); empty
+    /// without one.
+    pub amplitudes: Vec<f64>,
     /// Relative momentum error without walls (NaN with a wall).
     pub momentum_error: f64,
     /// Largest overlap / smaller radius seen.
@@ -574,6 +642,7 @@ impl ChainOutcome {
             energy_dissipated: f64::NAN,
             shock_speed: f64::NAN,
             piston_work: f64::NAN,
+            amplitudes: vec![],
             momentum_error: f64::NAN,
             max_overlap_ratio: f64::NAN,
             v: vec![],

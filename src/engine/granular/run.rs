@@ -190,6 +190,9 @@ pub struct Watch<R = f64> {
     /// without a piston).
     pub rises: Vec<Rise<R>>,
     pub rise_level: R,
+    /// Under a drive, per probe, its velocity's amplitude at the drive's
+    /// frequency over the run's second half.
+    pub amps: Vec<Amplitude<R>>,
 }
 
 impl<R: Real> Watch<R> {
@@ -209,6 +212,12 @@ impl<R: Real> Watch<R> {
                 vec![]
             },
             rise_level: R::of(0.5 * b.piston),
+            amps: match (&b.pulse, b.duration) {
+                (Some(p), Some(end)) if p.is_drive() => {
+                    vec![Amplitude::new(0.5 * end, end, p.frequency); b.probes.len()]
+                }
+                _ => vec![],
+            },
         }
     }
 
@@ -224,6 +233,9 @@ impl<R: Real> Watch<R> {
             let taken = vp.see_leading(t, [v, a, j], self.floor_v);
             if let Some(r) = self.rises.get_mut(k) {
                 r.see(t, [v, a, j], self.rise_level);
+            }
+            if let Some(r) = self.amps.get_mut(k) {
+                r.see(t, v);
             }
             let base = half * (c.f0[i] + c.f0[i + 1]);
             let q = [half * (fl + fr) - base, half * (dl + dr), half * (sl + sr)];
@@ -371,7 +383,7 @@ pub fn finish<R: Real>(
         let p = |v: &[f64]| b.mass.iter().zip(v).map(|(m, v)| m * v).sum::<f64>();
         let kick = b.pulse.as_ref().map_or(0.0, |pl| {
             if t >= pl.duration {
-                2.0 * pl.force * pl.duration / std::f64::consts::PI
+                pl.impulse()
             } else {
                 f64::NAN
             }
@@ -425,6 +437,7 @@ pub fn finish<R: Real>(
         energy_dissipated,
         shock_speed,
         piston_work: work,
+        amplitudes: obs.amps.iter().map(|a| a.value()).collect(),
         momentum_error,
         max_overlap_ratio: max_ratio,
         v: st.v.clone(),

@@ -257,7 +257,7 @@ fn forces<R: Real>(c: &Consts<R>, s: &mut State<R>, t: R, on: bool, track: Optio
     }
     if let Some(pl) = &c.pulse {
         if on && (lo..hi).contains(&pl.bead) {
-            let f = pl.force * pulse_sin(t, pl.omega);
+            let f = pl.force * push_sin(pl, t);
             s.a[pl.bead] = s.a[pl.bead] + f * pl.inv_mass;
         }
     }
@@ -309,6 +309,45 @@ pub fn pulse_sin<R: Real>(t: R, omega: R) -> R {
 #[inline(always)]
 pub fn pulse_cos<R: Real>(t: R, omega: R) -> R {
     half_sine(R::of(std::f64::consts::FRAC_PI_2) - omega * t)
+}
+
+/// sin(2π·φ) for a phase φ ≥ 0 in cycles: its fraction f = φ − ⌊φ⌋ in
+/// [0, 1), then [`half_sine`] of 2π·f on the first half and minus that of
+/// 2π·(f − ½) on the second (a drive over many periods: the argument stays
+/// within [0, π], where half_sine is exact to 2e-16, and the phase's
+/// rounding grows only as φ·2^−53).
+#[inline(always)]
+pub fn cycle_sin<R: Real>(phase: R) -> R {
+    let f = phase - phase.floor();
+    let half = R::of(0.5);
+    let tau = R::of(std::f64::consts::TAU);
+    if f < half {
+        half_sine(tau * f)
+    } else {
+        R::zero() - half_sine(tau * (f - half))
+    }
+}
+
+/// sin(ωt) of a pulse or a drive ([`PulseConsts`](super::PulseConsts)):
+/// [`pulse_sin`] for a half-sine pulse, [`cycle_sin`] of f·t for a drive.
+#[inline(always)]
+pub fn push_sin<R: Real>(p: &super::PulseConsts<R>, t: R) -> R {
+    if p.cycles == R::zero() {
+        pulse_sin(t, p.omega)
+    } else {
+        cycle_sin(p.cycles * t)
+    }
+}
+
+/// cos(ωt) of a pulse or a drive: [`pulse_cos`], or [`cycle_sin`] a
+/// quarter cycle on.
+#[inline(always)]
+pub fn push_cos<R: Real>(p: &super::PulseConsts<R>, t: R) -> R {
+    if p.cycles == R::zero() {
+        pulse_cos(t, p.omega)
+    } else {
+        cycle_sin(p.cycles * t + R::of(0.25))
+    }
 }
 
 #[inline(always)]
@@ -886,7 +925,7 @@ fn bead_rates<R: Real>(
     };
     let mut jerk = (rate(i) - rate(i + 1)) * c.inv_mass[i];
     if let Some(pl) = c.pulse.as_ref().filter(|p| on && p.bead == i) {
-        jerk = jerk + pl.force * pl.omega * pulse_cos(t, pl.omega) * pl.inv_mass;
+        jerk = jerk + pl.force * pl.omega * push_cos(pl, t) * pl.inv_mass;
     }
     let a = if inside(i) { s.scratch.a[i] } else { s.a[i] };
     [v(i), a, jerk]
@@ -991,7 +1030,7 @@ fn redo<R: Real>(
                 s.a[ii] = (s.e[ii] - s.e[ii + 1]) * c.inv_mass[ii];
             }
             if let Some(pl) = pulse {
-                let f = pl.force * pulse_sin(t, pl.omega);
+                let f = pl.force * push_sin(pl, t);
                 s.a[pl.bead] = s.a[pl.bead] + f * pl.inv_mass;
             }
             let k = kick_weight(w, j, hf);
@@ -1016,7 +1055,7 @@ fn redo<R: Real>(
         s.v[i] = s.v[i] + dv * c.inv_mass[i];
         let mut acc = (s.e[i] - s.e[i + 1]) * c.inv_mass[i];
         if let Some(pl) = c.pulse.as_ref().filter(|p| on && p.bead == i) {
-            acc = acc + pl.force * pulse_sin(t_end, pl.omega) * pl.inv_mass;
+            acc = acc + pl.force * push_sin(pl, t_end) * pl.inv_mass;
         }
         s.a[i] = acc;
     };
