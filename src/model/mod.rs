@@ -161,7 +161,12 @@ pub fn of(base: &Scene, varied: &Varied) -> Arc<dyn Model> {
             // A damped chain's table has `energy_dissipated`.
             let damped = c.viscosity > 0.0
                 || c.air_drag > 0.0
-                || varied.any(&["damping.viscosity", "damping.air_drag"]);
+                || c.restitution() < 1.0
+                || varied.any(&[
+                    "damping.viscosity",
+                    "damping.air_drag",
+                    "damping.restitution",
+                ]);
             let piston = c.piston > 0.0 || varied.any(&["piston.velocity"]);
             let drive = c.pulse.as_ref().is_some_and(|p| p.is_drive());
             Arc::new(granular::Granular::new(

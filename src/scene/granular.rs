@@ -302,17 +302,19 @@ impl SceneSpec {
         Ok(g)
     }
 
-    /// A chain's `[damping]` (issue #45): the contacts' dashpot γ (N·s/m)
-    /// and the beads' air drag (1/s), each ≥ 0. Hunt–Crossley contacts
-    /// (`restitution` below 1) are not in the chain engine yet: refused.
-    fn chain_damping(c: &Check, d: &super::spec::DampingSpec) -> Result<(f64, f64), InputError> {
-        if let Some(e) = d.restitution.filter(|&e| e != 1.0) {
-            return Err(c.err(
-                "damping.restitution",
-                e,
-                "1 on a granular chain (Hunt–Crossley contacts are not in the chain engine yet): give `viscosity` (N·s/m), a dashpot at each contact",
-            ));
-        }
+    /// A chain's `[damping]` (issue #45): the contacts' dashpot γ (N·s/m),
+    /// the beads' air drag (1/s), each ≥ 0, and Hunt–Crossley contacts of
+    /// restitution e in (0, 1].
+    fn chain_damping(
+        c: &Check,
+        d: &super::spec::DampingSpec,
+    ) -> Result<(f64, f64, f64), InputError> {
+        let e = c.opt(
+            "damping.restitution",
+            d.restitution,
+            |e| e > 0.0 && e <= 1.0,
+            "must be in (0, 1]",
+        )?;
         let g = c.opt(
             "damping.viscosity",
             d.viscosity,
@@ -325,7 +327,7 @@ impl SceneSpec {
             finite_non_negative,
             "must be finite and ≥ 0 (1/s)",
         )?;
-        Ok((g.unwrap_or(0.0), drag.unwrap_or(0.0)))
+        Ok((g.unwrap_or(0.0), drag.unwrap_or(0.0), e.unwrap_or(1.0)))
     }
 
     /// `[drive]`: F·sin(2π·f·t) on one bead for 0 ≤ t < `duration` (default
@@ -491,7 +493,7 @@ impl SceneSpec {
             setup.gravity = self.gravity_of(c, g, &setup, gap)?;
         }
         if let Some(d) = &self.damping {
-            (setup.viscosity, setup.air_drag) = Self::chain_damping(c, d)?;
+            (setup.viscosity, setup.air_drag, setup.restitution) = Self::chain_damping(c, d)?;
         }
         if let Some(p) = &self.piston {
             setup.piston = self.piston_of(c, p, &setup, duration)?;

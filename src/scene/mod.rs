@@ -221,6 +221,11 @@ pub struct ChainSetup {
     /// `[damping] air_drag` (1/s) on every bead; 0: none.
     #[serde(skip_serializing_if = "crate::scene::is_zero")]
     pub air_drag: f64,
+    /// `[damping] restitution` e of every contact (Hunt–Crossley, as for
+    /// cradles); 1: elastic (a chain without `[damping]` has 1, not the
+    /// `Default`'s 0: `restitution()`).
+    #[serde(skip_serializing_if = "crate::scene::is_elastic")]
+    pub restitution: f64,
     /// `[piston] velocity` (m/s): the left wall moves into the chain at this
     /// speed from t = 0; 0: it stands still.
     #[serde(skip_serializing_if = "crate::scene::is_zero")]
@@ -233,6 +238,23 @@ pub struct ChainSetup {
 /// Whether `x` is zero (a field left out of a serialized scene when unset).
 fn is_zero(x: &f64) -> bool {
     *x == 0.0
+}
+
+/// Whether a restitution is elastic (1, or 0: unset; left out of a
+/// serialized scene).
+fn is_elastic(x: &f64) -> bool {
+    *x == 1.0 || *x == 0.0
+}
+
+impl ChainSetup {
+    /// The contacts' restitution: `restitution`, 1 when unset (0).
+    pub fn restitution(&self) -> f64 {
+        if self.restitution == 0.0 {
+            1.0
+        } else {
+            self.restitution
+        }
+    }
 }
 
 /// A checked scene in SI units, one value per ball (gaps and glue: per contact).

@@ -75,6 +75,7 @@ pub const PARAMS: &[(&str, Kind)] = &[
     ("gravity.g", Kind::Number),
     ("damping.viscosity", Kind::Number),
     ("damping.air_drag", Kind::Number),
+    ("damping.restitution", Kind::Number),
     ("piston.velocity", Kind::Number),
     ("drive.bead", Kind::Integer),
     ("drive.force", Kind::Number),
@@ -535,6 +536,11 @@ pub fn apply(spec: &mut SceneSpec, base: &Scene, p: &Param, value: &Value) {
             spec.damping
                 .get_or_insert_with(DampingSpec::default)
                 .viscosity = Some(num)
+        }
+        "damping.restitution" => {
+            spec.damping
+                .get_or_insert_with(DampingSpec::default)
+                .restitution = Some(num)
         }
         "damping.air_drag" => {
             spec.damping

@@ -479,6 +479,7 @@ fn finish<R: Real>(job: &ChainJob, h: &ChainHead, reals: &[R], e_start: f64) -> 
         lost_c: Vec::new(),
         lost_b: Vec::new(),
         wall_imp: R::zero(),
+        chi: Vec::new(),
     };
     let mut watch = Watch::<R>::new(b);
     let mut o = rel(h.o_watch);

@@ -78,6 +78,8 @@ pub struct Beads {
     pub air_drag: f64,
     /// Speed of the left wall into the chain (m/s; 0: it stands still).
     pub piston: f64,
+    /// Restitution e of every contact (Hunt–Crossley; 1: elastic).
+    pub restitution: f64,
     pub left_wall: bool,
     pub right_wall: bool,
     /// Initial velocity of each bead (m/s).
@@ -127,6 +129,14 @@ pub struct Consts<R> {
 pub struct DampConsts<R> {
     /// γ (N·s/m).
     pub gamma: R,
+    /// The Hunt–Crossley parameter a(e) of the contacts' restitution e
+    /// ([`crate::engine::contact::hunt_crossley_a`]; 0: elastic): a closed
+    /// contact's dashpot is then χ·k·δ^{3/2} more, χ = a / its closing
+    /// speed ([`step::State::chi`]).
+    pub hc: R,
+    /// χ of a contact closed at rest (precompressed, under gravity): a / the
+    /// velocity scale.
+    pub chi_rest: R,
     /// Air drag (1/s).
     pub drag: R,
     /// γ·(1/m_a + 1/m_b) of each contact (1/s): the rate its relative
@@ -158,8 +168,11 @@ impl<R: Real> DampConsts<R> {
         // μ/m of one bead: (1/m)/(1/m_a + 1/m_b).
         let share = |j: usize, bead: Option<usize>| im(bead) / inv_mu[j];
         let conv = |x: Vec<f64>| x.into_iter().map(R::of).collect::<Vec<R>>();
+        let hc = crate::engine::contact::hunt_crossley_a(b.restitution);
         DampConsts {
             gamma: R::of(b.viscosity),
+            hc: R::of(hc),
+            chi_rest: R::of(hc / b.v_scale()),
             drag: R::of(b.air_drag),
             beta: conv(
                 (0..=n)
@@ -324,6 +337,7 @@ impl Beads {
             viscosity: setup.viscosity,
             air_drag: setup.air_drag,
             piston: setup.piston,
+            restitution: setup.restitution(),
             left_wall: setup.left_wall.is_some(),
             right_wall: setup.right_wall.is_some(),
             v0: s.velocity.clone(),
@@ -335,9 +349,10 @@ impl Beads {
         }
     }
 
-    /// Whether the chain dissipates (a dashpot or air drag, issue #45).
+    /// Whether the chain dissipates (a dashpot, Hunt–Crossley contacts or
+    /// air drag, issue #45).
     pub fn damped(&self) -> bool {
-        self.viscosity > 0.0 || self.air_drag > 0.0
+        self.viscosity > 0.0 || self.air_drag > 0.0 || self.restitution < 1.0
     }
 
     /// Whether only the CPU engine runs this chain: the GPU kernel has no

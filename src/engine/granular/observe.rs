@@ -83,9 +83,19 @@ fn dashpot_force<R: Real>(c: &Consts<R>, st: &State<R>, j: usize) -> R {
     let d = c.d0[j] + st.p[j];
     match &c.damp {
         Some(dp) if c.k[j] != R::zero() && d > R::zero() => {
-            (dp.gamma * closing(c, st, j)).max(R::zero() - super::hertz(c.k[j], d))
+            let spring = super::hertz(c.k[j], d);
+            (dashpot_gamma(dp, st, j, spring) * closing(c, st, j)).max(R::zero() - spring)
         }
         _ => R::zero(),
+    }
+}
+
+/// A closed contact's dashpot coefficient (N·s/m): γ, plus χ·k·δ^{3/2}
+/// with Hunt–Crossley contacts (`spring`: k·δ^{3/2}).
+fn dashpot_gamma<R: Real>(d: &super::DampConsts<R>, st: &State<R>, j: usize, spring: R) -> R {
+    match st.chi.get(j) {
+        Some(&chi) if d.hc != R::zero() => d.gamma + chi * spring,
+        _ => d.gamma,
     }
 }
 
@@ -132,11 +142,17 @@ fn damping_jerk<R: Real>(c: &Consts<R>, st: &State<R>, i: usize) -> R {
             return R::zero();
         }
         let r1 = closing(c, st, j);
-        if d.gamma * r1 < R::zero() - super::hertz(c.k[j], dl) {
+        let spring = super::hertz(c.k[j], dl);
+        let g = dashpot_gamma(d, st, j, spring);
+        let spring_rate = R::of(1.5) * c.k[j] * dl.sqrt() * r1;
+        if g * r1 < R::zero() - spring {
             // Slack: the dashpot's force is −k·δ^{3/2}, its rate −1.5·k·√δ·δ̇.
-            R::zero() - R::of(1.5) * c.k[j] * dl.sqrt() * r1
+            R::zero() - spring_rate
         } else {
-            d.gamma * across_acceleration(c, st, j)
+            // (γ + χ·k·δ^{3/2})·δ̈ + χ·(1.5·k·√δ·δ̇)·δ̇.
+            let hc = st.chi.get(j).filter(|_| d.hc != R::zero());
+            let extra = hc.map_or(R::zero(), |&chi| chi * spring_rate * r1);
+            g * across_acceleration(c, st, j) + extra
         }
     };
     (rate(i) - rate(i + 1)) * c.inv_mass[i] - d.drag * acceleration(c, st, i)

@@ -54,6 +54,11 @@ pub struct State<R = f64> {
     /// a piston (0 otherwise): its kicks, kink and damping; the piston's
     /// work is its speed times this.
     pub wall_imp: R,
+    /// Each contact's Hunt–Crossley χ (s/m; contacts 0 ..= n, with a
+    /// restitution below 1 only): a(e) over its closing speed, set by the
+    /// first damping substep that finds it closed, 0 again once it opens;
+    /// a contact closed at rest has a(e) / the velocity scale.
+    pub chi: Vec<R>,
 }
 
 /// A step's scratch: its start over the window (contacts lo ..= hi, beads
@@ -147,10 +152,22 @@ impl<R: Real> State<R> {
             lost_c: Vec::new(),
             lost_b: Vec::new(),
             wall_imp: zero,
+            chi: Vec::new(),
         };
-        if c.damp.is_some() {
+        if let Some(d) = &c.damp {
             (s.lost_c, s.lost_b) = (vec![zero; n + 1], vec![zero; n]);
             s.scratch.dimp = vec![zero; n + 1];
+            if d.hc != zero {
+                s.chi = (0..=n)
+                    .map(|j| {
+                        if c.d0[j] > zero && c.k[j] != zero {
+                            d.chi_rest
+                        } else {
+                            zero
+                        }
+                    })
+                    .collect();
+            }
         }
         forces(c, &mut s, zero, pulse_on(c, zero), None);
         if !whole {
@@ -182,6 +199,7 @@ impl<R: Real> State<R> {
             lost_c: conv(&self.lost_c),
             lost_b: conv(&self.lost_b),
             wall_imp: self.wall_imp.to64(),
+            chi: conv(&self.chi),
         })
     }
 
@@ -675,7 +693,7 @@ fn damp<R: Real>(c: &Consts<R>, d: &super::DampConsts<R>, s: &mut State<R>, tau:
     if d.drag != zero {
         drag(d, s, half);
     }
-    if d.gamma != zero {
+    if d.gamma != zero || d.hc != zero {
         for (parity, t) in [(0, half), (1, tau), (0, half)] {
             let mut j = s.lo + (s.lo + parity) % 2;
             while j <= s.hi {
@@ -746,12 +764,23 @@ fn dashpot<R: Real>(c: &Consts<R>, d: &super::DampConsts<R>, s: &mut State<R>, j
     if w == zero {
         return;
     }
-    let x = d.beta[j] * t;
+    let spring = hertz(c.k[j], dl);
+    let mut beta = d.beta[j];
+    if d.hc != zero {
+        // Hunt–Crossley: χ·k·δ^{3/2} more, χ = a / the closing speed, taken
+        // at the first substep that finds the contact closed (its overlap
+        // then ≤ v·h: the speed is the impact's to O((h/t_c)^{5/2})).
+        if s.chi[j] == zero {
+            s.chi[j] = d.hc / w.abs();
+        }
+        beta = beta + s.chi[j] * spring * d.inv_mu[j];
+    }
+    let x = beta * t;
     let mut wn = w * (two - x) / (two + x);
     if (wn - w) * t > zero {
         // Pulling over this substep (for t < 0, a substep back in time,
         // the same with the signs turned): at most the spring's push.
-        let lim = w + hertz(c.k[j], dl) * t * d.inv_mu[j];
+        let lim = w + spring * t * d.inv_mu[j];
         if (wn - lim) * t > zero {
             wn = lim;
         }
@@ -782,10 +811,18 @@ fn dashpot<R: Real>(c: &Consts<R>, d: &super::DampConsts<R>, s: &mut State<R>, j
 #[inline(always)]
 fn crossings<R: Real>(c: &Consts<R>, d: &super::DampConsts<R>, s: &mut State<R>) {
     let zero = R::zero();
+    let (lo, hi) = (s.lo, s.hi);
+    if d.hc != zero {
+        // An open contact's next closing sets its χ afresh.
+        for j in lo..=hi {
+            if c.d0[j] + s.p[j] <= zero {
+                s.chi[j] = zero;
+            }
+        }
+    }
     if d.gamma == zero {
         return;
     }
-    let (lo, hi) = (s.lo, s.hi);
     let closed = |s: &State<R>, j: usize| closing_correction(c, d, s, j);
     if !(lo..=hi).any(|j| closed(s, j).is_some()) {
         return;
