@@ -81,9 +81,10 @@ fn closing<R: Real>(c: &Consts<R>, st: &State<R>, j: usize) -> R {
 /// step's [`super::step`] `dashpot`); 0 when open or undamped.
 fn dashpot_force<R: Real>(c: &Consts<R>, st: &State<R>, j: usize) -> R {
     let d = c.d0[j] + st.p[j];
+    let spring = super::hertz(c.k[j], d);
     match &c.damp {
-        Some(dp) if c.k[j] != R::zero() && d > R::zero() => {
-            let spring = super::hertz(c.k[j], d);
+        // Closed as the step's dashpot sees it: its spring pushes.
+        Some(dp) if spring > R::zero() => {
             (dashpot_gamma(dp, st, j, spring) * closing(c, st, j)).max(R::zero() - spring)
         }
         _ => R::zero(),
@@ -138,11 +139,11 @@ fn damping_jerk<R: Real>(c: &Consts<R>, st: &State<R>, i: usize) -> R {
     };
     let rate = |j: usize| {
         let dl = c.d0[j] + st.p[j];
-        if c.k[j] == R::zero() || dl <= R::zero() {
+        let spring = super::hertz(c.k[j], dl);
+        if spring <= R::zero() {
             return R::zero();
         }
         let r1 = closing(c, st, j);
-        let spring = super::hertz(c.k[j], dl);
         let g = dashpot_gamma(d, st, j, spring);
         let spring_rate = R::of(1.5) * c.k[j] * dl.sqrt() * r1;
         if g * r1 < R::zero() - spring {

@@ -718,7 +718,8 @@ fn closing_correction<R: Real>(
 ) -> Option<R> {
     let zero = R::zero();
     let (a, b) = (c.d0[j] + s.scratch.p[j], c.d0[j] + s.p[j]);
-    (d.gamma != zero && a <= zero && b > zero && c.k[j] != zero)
+    // Closed at the end as the dashpot sees it: its spring pushes.
+    (d.gamma != zero && a <= zero && hertz(c.k[j], b) > zero)
         .then(|| -(d.gamma * b) - s.scratch.dimp[j])
 }
 
@@ -753,7 +754,12 @@ fn drag<R: Real>(d: &super::DampConsts<R>, s: &mut State<R>, t: R) {
 fn dashpot<R: Real>(c: &Consts<R>, d: &super::DampConsts<R>, s: &mut State<R>, j: usize, t: R) {
     let (zero, two, half) = (R::zero(), R::of(2.0), R::of(0.5));
     let dl = c.d0[j] + s.p[j];
-    if dl <= zero || c.k[j] == zero {
+    // Closed: its spring pushes (k·δ^{3/2} > 0; ahead of a solitary wave a
+    // precursor's contact at δ ~ 1e-200 does not, and its dashpot would
+    // carry round-off-sized velocities along the whole chain, out of the
+    // window's reach for no force that matters).
+    let spring = hertz(c.k[j], dl);
+    if spring <= zero {
         return;
     }
     let n = s.v.len();
@@ -764,14 +770,17 @@ fn dashpot<R: Real>(c: &Consts<R>, d: &super::DampConsts<R>, s: &mut State<R>, j
     if w == zero {
         return;
     }
-    let spring = hertz(c.k[j], dl);
     let mut beta = d.beta[j];
     if d.hc != zero {
-        // Hunt–Crossley: χ·k·δ^{3/2} more, χ = a / the closing speed, taken
-        // at the first substep that finds the contact closed (its overlap
-        // then ≤ v·h: the speed is the impact's to O((h/t_c)^{5/2})).
-        if s.chi[j] == zero {
-            s.chi[j] = d.hc / w.abs();
+        // Hunt–Crossley: χ·k·δ^{3/2} more, χ = a / the closing speed: the
+        // largest the contact has closed at since it closed (at its first
+        // substep closed, its overlap ≤ v·h, the impact's to
+        // O((h/t_c)^{5/2}); a precursor's contact, closed long before its
+        // wave comes, takes the wave's speed as it comes), at least
+        // `chi_floor`, as the cradles' closing speed has a floor.
+        let chi = d.hc / w.abs().max(d.chi_floor);
+        if s.chi[j] == zero || (w > zero && chi < s.chi[j]) {
+            s.chi[j] = chi;
         }
         beta = beta + s.chi[j] * spring * d.inv_mu[j];
     }

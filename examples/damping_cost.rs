@@ -1,0 +1,69 @@
+//! The cost of damping on chains (issue #45; results/chains.md, "Damping,
+//! pistons, drives"): a 1,000-bead steel chain struck at one end, at a fixed
+//! step, undamped and with each kind of damping, the window the whole chain
+//! (`run_with(.., whole = true)`: every bead stepped, so the time per
+//! bead-step compares the step's own work) and as a run windows it (the
+//! beads near the wave: what a user waits for). Best of 3 runs, one thread.
+//!
+//! `cargo run --release --example damping_cost`
+
+use hertz_cradle::engine::granular::{self, run::run_with, Beads, NoRows};
+use hertz_cradle::engine::{Overrides, Solver};
+use hertz_cradle::scene::Scene;
+use std::time::Instant;
+
+fn main() {
+    let base = |extra: &str, pre: bool| {
+        format!(
+            "balls = 1000\nradius = 0.005\n{}[launch]\nballs = 1\nvelocity = 0.1\n[probes]\nbeads = [250, 750]\n\
+             [solver]\ndt = 2e-7\n[stop]\nduration = 4e-3\n{extra}",
+            if pre {
+                "[walls]\nleft = true\nright = true\nprecompression = 10.0\n"
+            } else {
+                ""
+            }
+        )
+    };
+    println!("| chain | damping | ns per bead-step (whole chain) | × undamped | run, windowed (s) | × undamped |");
+    println!("|---|---|---|---|---|---|");
+    for pre in [false, true] {
+        let mut first = None;
+        for (name, extra) in [
+            ("none", ""),
+            ("viscosity 0.5 N·s/m", "[damping]\nviscosity = 0.5\n"),
+            ("restitution 0.9", "[damping]\nrestitution = 0.9\n"),
+            ("air drag 10/s", "[damping]\nair_drag = 10.0\n"),
+        ] {
+            let s = Scene::from_toml_str("cost", &base(extra, pre)).unwrap();
+            let b = Beads::from_scene(&s);
+            let plan = granular::plan(
+                &b,
+                &Solver::resolve(&s, &Overrides::default()).unwrap(),
+                None,
+            );
+            let best = |whole: bool| {
+                (0..3)
+                    .map(|_| {
+                        let t = Instant::now();
+                        let o = run_with(&b, &plan, &mut NoRows, whole);
+                        (t.elapsed().as_secs_f64(), o.steps)
+                    })
+                    .fold((f64::INFINITY, 0), |a, x| if x.0 < a.0 { x } else { a })
+            };
+            let (tw, steps) = best(true);
+            let (tr, _) = best(false);
+            let ns = tw / (steps as f64 * b.n as f64) * 1e9;
+            let (ns0, tr0) = *first.get_or_insert((ns, tr));
+            println!(
+                "| {} | {name} | {ns:.2} | {:.2} | {tr:.3} | {:.1} |",
+                if pre {
+                    "precompressed 10 N"
+                } else {
+                    "uncompressed"
+                },
+                ns / ns0,
+                tr / tr0
+            );
+        }
+    }
+}
