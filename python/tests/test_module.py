@@ -197,6 +197,28 @@ def test_a_granular_chain_runs_as_cradle_run_does(tmp_path):
         hc.run(str(scene), precision="f32")
 
 
+def test_a_dissipating_pushed_and_driven_chain_from_python(tmp_path):
+    """Issue #45 from Python: the same row as `cradle run` for a chain with
+    dashpots and a piston, and for a driven one, with their columns."""
+    pushed = tmp_path / "pushed.toml"
+    pushed.write_text("balls = 60\nradius = 0.005\n[walls]\nleft = true\n[piston]\nvelocity = 0.1\n"
+                      "[damping]\nviscosity = 20.0\n[probes]\nbeads = [10, 50]\n"
+                      "[stop]\nduration = 1.5e-3\n")
+    driven = tmp_path / "driven.toml"
+    driven.write_text("balls = 60\n[walls]\nleft = true\nright = true\nprecompression = 5.0\n"
+                      "[drive]\nforce = 0.01\nfrequency = 5000.0\n[probes]\nbeads = [2, 30]\n"
+                      "[stop]\nduration = 2e-3\n")
+    for scene, cols in [(pushed, ["energy_dissipated", "shock_speed", "piston_work"]),
+                        (driven, ["amplitude_2", "amplitude_30"])]:
+        header, row = cli("run", str(scene), "--format", "csv").stdout.splitlines()
+        want = dict(zip(header.split(","), row.split(",")))
+        got = hc.run(str(scene))
+        assert got["status"] == want["status"] == "ok"
+        for c in cols:
+            assert got[c] == float(want[c]) and got[c] > 0, c
+    assert hc.run(str(pushed))["shock_speed"] > 300.0
+
+
 def test_ctrl_c_stops_a_sweep_and_resume_finishes_it(tmp_path):
     spec = tmp_path / "big.toml"
     spec.write_text(SMALL_TOML.replace("3]", "300]").replace("4]", "1000]"))  # 300,000 scenes
