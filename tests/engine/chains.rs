@@ -945,7 +945,10 @@ fn damping_keeps_the_methods_orders() {
         };
         let (e1, e2) = (err(ts / div), err(ts / (2.0 * div)));
         let q = (e1 / e2).log2();
-        eprintln!("{m}: t_s/{div} {e1:e}, t_s/{} {e2:e}, order {q:.2}", 2.0 * div);
+        eprintln!(
+            "{m}: t_s/{div} {e1:e}, t_s/{} {e2:e}, order {q:.2}",
+            2.0 * div
+        );
         assert!(
             (q - order).abs() < 0.6,
             "{m}: errors {e1:e} → {e2:e}, order {q:.2}, want {order}"
