@@ -252,22 +252,18 @@ pub fn run_chains_controlled(
     // that need not fall with the step and that one pair can miss (a driven
     // chain `ok` at 1.9x its 1e-8: results/chains.md). The second pair
     // then shows whether the difference falls (the verdict's `sensitive`).
-    let dashpots: Vec<bool> = (0..n)
-        .map(|k| Ok(job(k)?.is_some_and(|j| j.beads.viscosity > 0.0)))
-        .collect::<anyhow::Result<_>>()?;
     // Pass 0: the twins (a coarser step); then reruns at finer steps.
     for pass in 0..=control::MAX_RERUNS {
         let steps: Vec<Option<f64>> = track
             .iter()
             .zip(&out)
-            .enumerate()
-            .map(|(k, (t, o))| {
+            .map(|(t, o)| {
                 let t = t.as_ref().filter(|t| t.open)?;
                 if pass == 0 {
                     return Some(t.h * control::TWIN_RATIO);
                 }
                 let tol = o.tolerance?;
-                (o.error_estimate > tol || (pass == 1 && dashpots[k]))
+                (o.error_estimate > tol || (pass == 1 && o.dashpots))
                     .then(|| control::next_step(t.h, o.error_estimate, tol, t.q))
             })
             .collect();

@@ -307,9 +307,12 @@ impl Backend for Gpu {
     }
 
     /// A workgroup per chain (`granular.rs`); the chains are built on the
-    /// rayon pool, all of the batch before the device starts. Damped chains
-    /// and pistons (issue #45) run on the CPU engine beside them: the
-    /// kernel has no damping substep and no moving wall yet.
+    /// rayon pool, all of the batch before the device starts. Damped, pushed
+    /// and driven chains (issue #45, [`Beads::cpu_only`]) run on the CPU
+    /// engine beside them: the kernel has no damping substep, no moving
+    /// wall and no drive yet.
+    ///
+    /// [`Beads::cpu_only`]: crate::engine::granular::Beads::cpu_only
     fn run_chains(
         &self,
         n: usize,
@@ -319,26 +322,30 @@ impl Backend for Gpu {
         use rayon::prelude::*;
         let jobs: Vec<Option<super::ChainJob>> =
             (0..n).into_par_iter().map(job).collect::<Result<_, _>>()?;
-        let damped = |j: &super::ChainJob| j.beads.cpu_only();
-        let valid: Vec<&super::ChainJob> = jobs.iter().flatten().filter(|j| !damped(j)).collect();
-        let mut done = self.run_chain_jobs(&valid)?.into_iter();
-        Ok(jobs
+        let on_device: Vec<&super::ChainJob> = jobs
+            .iter()
+            .flatten()
+            .filter(|j| !j.beads.cpu_only())
+            .collect();
+        let mut done = self.run_chain_jobs(&on_device)?.into_iter();
+        let on_cpu: Vec<Option<ChainOutcome>> = jobs
             .par_iter()
-            .map(|j| match j {
-                Some(j) if damped(j) => crate::engine::granular::run(
+            .map(|j| {
+                let j = j.as_ref().filter(|j| j.beads.cpu_only())?;
+                Some(crate::engine::granular::run(
                     &j.beads,
                     &j.plan,
                     &mut crate::engine::granular::NoRows,
-                ),
-                Some(_) => ChainOutcome::invalid(),
-                None => ChainOutcome::invalid(),
+                ))
             })
-            .collect::<Vec<_>>()
-            .into_iter()
-            .zip(&jobs)
-            .map(|(o, j)| match j {
-                Some(j) if !damped(j) => done.next().expect("one outcome per chain"),
-                _ => o,
+            .collect();
+        Ok(jobs
+            .iter()
+            .zip(on_cpu)
+            .map(|(j, cpu)| match (j, cpu) {
+                (_, Some(o)) => o,
+                (Some(_), None) => done.next().expect("one outcome per chain"),
+                (None, None) => ChainOutcome::invalid(),
             })
             .collect())
     }

@@ -172,6 +172,14 @@ impl<R: Real> DampConsts<R> {
         // μ/m of one bead: (1/m)/(1/m_a + 1/m_b).
         let share = |j: usize, bead: Option<usize>| im(bead) / inv_mu[j];
         let conv = |x: Vec<f64>| x.into_iter().map(R::of).collect::<Vec<R>>();
+        // A per-contact value, 0 where there is no contact (an absent wall).
+        let per_contact = |f: &dyn Fn(usize) -> f64| {
+            conv(
+                (0..=n)
+                    .map(|j| if b.k[j] == 0.0 { 0.0 } else { f(j) })
+                    .collect(),
+            )
+        };
         let hc = crate::engine::contact::hunt_crossley_a(b.restitution);
         DampConsts {
             gamma: R::of(b.viscosity),
@@ -179,45 +187,15 @@ impl<R: Real> DampConsts<R> {
             chi_rest: R::of(hc / b.v_scale()),
             chi_floor: R::of(1e-3 * b.v_scale()),
             drag: R::of(b.air_drag),
-            beta: conv(
-                (0..=n)
-                    .map(|j| {
-                        if b.k[j] == 0.0 {
-                            0.0
-                        } else {
-                            b.viscosity * inv_mu[j]
-                        }
-                    })
-                    .collect(),
-            ),
+            beta: per_contact(&|j| b.viscosity * inv_mu[j]),
             mu: conv(
                 inv_mu
                     .iter()
                     .map(|&x| if x > 0.0 { 1.0 / x } else { 0.0 })
                     .collect(),
             ),
-            share_a: conv(
-                (0..=n)
-                    .map(|j| {
-                        if b.k[j] == 0.0 {
-                            0.0
-                        } else {
-                            share(j, ends(j).0)
-                        }
-                    })
-                    .collect(),
-            ),
-            share_b: conv(
-                (0..=n)
-                    .map(|j| {
-                        if b.k[j] == 0.0 {
-                            0.0
-                        } else {
-                            share(j, ends(j).1)
-                        }
-                    })
-                    .collect(),
-            ),
+            share_a: per_contact(&|j| share(j, ends(j).0)),
+            share_b: per_contact(&|j| share(j, ends(j).1)),
             inv_mu: conv(inv_mu),
             mass: conv(b.mass.clone()),
         }
@@ -360,6 +338,14 @@ impl Beads {
         self.viscosity > 0.0 || self.air_drag > 0.0 || self.restitution < 1.0
     }
 
+    /// Whether the local refinement may run on this chain ([`Plan::refine`]):
+    /// not on a damped one (its redone regions have no damping substep) nor
+    /// one with a piston (a redone region would move bead 0 past the
+    /// piston's account of its impulse).
+    pub fn refinable(&self) -> bool {
+        !self.damped() && self.piston == 0.0
+    }
+
     /// Whether only the CPU engine runs this chain: the GPU kernel has no
     /// damping substep, no piston and no drive yet (issue #45).
     pub fn cpu_only(&self) -> bool {
@@ -425,10 +411,9 @@ impl Beads {
         }
         // Damping: the fastest decay of a contact's relative velocity,
         // γ·(1/m_a + 1/m_b) ≤ 2γ/m_min, and the air drag's rate.
-        let m_min = self.mass.iter().fold(f64::INFINITY, |m, &x| m.min(x));
-        let rate = (2.0 * self.viscosity / m_min).max(self.air_drag);
-        if rate > 0.0 {
-            t = t.min(1.0 / rate);
+        if self.viscosity > 0.0 || self.air_drag > 0.0 {
+            let m_min = self.mass.iter().fold(f64::INFINITY, |m, &x| m.min(x));
+            t = t.min(1.0 / (2.0 * self.viscosity / m_min).max(self.air_drag));
         }
         t
     }
@@ -708,7 +693,7 @@ pub fn first_step(beads: &Beads, method: crate::scene::Method, tol: f64) -> f64 
     let at = |(c, q): (f64, f64)| ts * (tol / c).powf(1.0 / q);
     let coarse = at(chain_error_model(method)).min(ts / MIN_STEPS_PER_SCALE);
     match refined_error_model(method)
-        .filter(|_| !beads.damped() && beads.piston == 0.0)
+        .filter(|_| beads.refinable())
         .map(at)
     {
         // Refined steps meet the tolerance from some step at or below
@@ -755,10 +740,7 @@ impl Plan {
         }
         self.h = h;
         let fine = beads.time_scale() / REFINE_FROM;
-        // A damped chain runs without the local refinement (its redone
-        // regions have no damping substep), and so does one with a piston
-        // (a redone region would move bead 0 past the piston's account).
-        let on = (refine || h <= fine) && !beads.damped() && beads.piston == 0.0;
+        let on = (refine || h <= fine) && beads.refinable();
         self.refine = (on && refined_error_model(self.method).is_some()).then(|| step::Refine {
             reach: step::REFINE_REACH,
             steps: step::REFINE_STEPS,

@@ -39,18 +39,24 @@ fn dpoly<R: Real>(c: &[R; 6], x: R) -> R {
 /// The maximum of the quintic inside [0, 1] whose derivative falls from
 /// ≥ 0 at 0 to ≤ 0 at 1: (θ, value), by bisection on the derivative.
 pub fn peak<R: Real>(c: &[R; 6]) -> (R, R) {
+    let x = bisect(|m| dpoly(c, m) > R::zero());
+    (x, poly(c, x))
+}
+
+/// The point of [0, 1] where `before` turns false, by 60 bisections (the
+/// GPU kernel's `peak` takes the same ones).
+fn bisect<R: Real>(before: impl Fn(R) -> bool) -> R {
     let (mut a, mut b) = (R::zero(), R::one());
     let half = R::of(0.5);
     for _ in 0..60 {
         let m = half * (a + b);
-        if dpoly(c, m) > R::zero() {
+        if before(m) {
             a = m;
         } else {
             b = m;
         }
     }
-    let x = half * (a + b);
-    (x, poly(c, x))
+    half * (a + b)
 }
 
 /// ∫₀¹ of the quintic (exact).
@@ -425,17 +431,7 @@ impl<R: Real> Rise<R> {
                     [q0[1] * h, q[1] * h],
                     [q0[2] * h * h, q[2] * h * h],
                 );
-                let (mut a, mut b) = (R::zero(), R::one());
-                let half = R::of(0.5);
-                for _ in 0..60 {
-                    let m = half * (a + b);
-                    if poly(&c, m) < R::zero() {
-                        a = m;
-                    } else {
-                        b = m;
-                    }
-                }
-                self.at = Some(t0 + h * (half * (a + b)));
+                self.at = Some(t0 + h * bisect(|m| poly(&c, m) < R::zero()));
             }
             _ => {}
         }
@@ -638,6 +634,9 @@ pub struct ChainOutcome {
     pub tolerance: Option<f64>,
     /// Whether the run had the local refinement on ([`super::Plan::refine`]).
     pub refined: bool,
+    /// Whether the chain has dashpots (`[damping] viscosity`): the error
+    /// control then always takes a rerun ([`crate::backend::run_chains_controlled`]).
+    pub dashpots: bool,
 }
 
 impl ChainOutcome {
@@ -672,6 +671,7 @@ impl ChainOutcome {
             v_scale: f64::NAN,
             tolerance: None,
             refined: false,
+            dashpots: false,
         }
     }
 }

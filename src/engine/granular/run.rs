@@ -450,5 +450,6 @@ pub fn finish<R: Real>(
         v_scale: b.v_scale(),
         tolerance: plan.tolerance,
         refined: plan.substeps().refine.is_some(),
+        dashpots: b.viscosity > 0.0,
     }
 }
