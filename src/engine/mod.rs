@@ -22,6 +22,40 @@ pub use solver::{Overrides, Solver, StepRule};
 use crate::scene::Precision;
 use real::Df64;
 
+/// A request to end a long run early, shared with whoever may make it (the
+/// explorer, when a scene passes its time limit and its caller has been
+/// answered): a granular chain's run looks at it every
+/// [`granular::run::CHECK_EVERY`] steps and ends. The outcome of a stopped run
+/// is not the scene's: the one who stopped it discards it. Not part of a
+/// plan's identity (plans compare equal whatever their `Stop`).
+#[derive(Clone, Debug, Default)]
+pub struct Stop(Option<std::sync::Arc<std::sync::atomic::AtomicBool>>);
+
+impl PartialEq for Stop {
+    fn eq(&self, _: &Stop) -> bool {
+        true
+    }
+}
+
+impl Stop {
+    /// A stop that [`Stop::request`] on any clone triggers.
+    pub fn new() -> Stop {
+        Stop(Some(Default::default()))
+    }
+
+    pub fn request(&self) {
+        if let Some(f) = &self.0 {
+            f.store(true, std::sync::atomic::Ordering::Relaxed);
+        }
+    }
+
+    pub fn requested(&self) -> bool {
+        self.0
+            .as_ref()
+            .is_some_and(|f| f.load(std::sync::atomic::Ordering::Relaxed))
+    }
+}
+
 /// The step (`None`: nothing can collide) and caps of one run; both backends
 /// start from exactly these.
 pub fn plan(chain: &Chain, solver: &Solver) -> (Option<StepPlan>, Limits) {

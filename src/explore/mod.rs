@@ -496,8 +496,13 @@ async fn row(State(d): State<Arc<Data>>, Query(q): Query<HashMap<String, String>
 
 /// Run scene `id` of the sweep again for a closer look (its model's
 /// [`crate::model::Model::look`]).
-fn run_scene(sweep: &Sweep, id: u64, o: &crate::engine::Overrides) -> Result<Json_> {
-    sweep.model.look(id, sweep.scene(id), o)
+fn run_scene(
+    sweep: &Sweep,
+    id: u64,
+    o: &crate::engine::Overrides,
+    stop: &crate::engine::Stop,
+) -> Result<Json_> {
+    sweep.model.look(id, sweep.scene(id), o, stop)
 }
 
 async fn scene(State(d): State<Arc<Data>>, Query(q): Query<HashMap<String, String>>) -> Response {
@@ -518,9 +523,16 @@ async fn scene(State(d): State<Arc<Data>>, Query(q): Query<HashMap<String, Strin
         );
     };
     let d2 = d.clone();
+    let stop = crate::engine::Stop::new();
+    let stop2 = stop.clone();
     let task = tokio::task::spawn_blocking(move || {
         let r = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-            run_scene(d2.sweep.as_ref().expect("checked above"), id, &d2.overrides)
+            run_scene(
+                d2.sweep.as_ref().expect("checked above"),
+                id,
+                &d2.overrides,
+                &stop2,
+            )
         }));
         drop(permit);
         r
@@ -532,10 +544,15 @@ async fn scene(State(d): State<Arc<Data>>, Query(q): Query<HashMap<String, Strin
             StatusCode::INTERNAL_SERVER_ERROR,
             format!("scene {id} failed"),
         ),
-        Err(_) => err(
-            StatusCode::SERVICE_UNAVAILABLE,
-            format!("scene {id} takes longer than {RUN_TIMEOUT_S} s"),
-        ),
+        Err(_) => {
+            // Stop it: it would keep its slot for minutes (a 10^4-bead
+            // chain), and every other scene would be refused meanwhile.
+            stop.request();
+            err(
+                StatusCode::SERVICE_UNAVAILABLE,
+                format!("scene {id} takes longer than {RUN_TIMEOUT_S} s: stopped"),
+            )
+        }
     }
 }
 

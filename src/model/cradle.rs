@@ -125,6 +125,7 @@ impl Model for Cradle {
         id: u64,
         scene: Result<Scene, InputError>,
         o: &Overrides,
+        _: &crate::engine::Stop,
     ) -> anyhow::Result<serde_json::Value> {
         let Job::Run { chain, solver } = job(scene, self.n_balls, o)? else {
             anyhow::bail!("scene {id} is not a valid scene (status invalid)");

@@ -150,14 +150,19 @@ impl Model for Granular {
         id: u64,
         scene: Result<Scene, InputError>,
         o: &Overrides,
+        stop: &crate::engine::Stop,
     ) -> anyhow::Result<serde_json::Value> {
         use crate::engine::granular::history::History;
-        let Some(job) = job(scene, o)? else {
+        let Some(mut job) = job(scene, o)? else {
             anyhow::bail!("scene {id} is not a valid chain (status invalid)");
         };
+        job.plan.stop = stop.clone();
         let row = run_chain_controlled(&job)?;
         let mut h = History::new(&job.beads, HISTORY_BEADS, HISTORY_ROWS);
         let o = crate::backend::rerun_reported(&job, &row, &mut h, true);
+        if stop.requested() {
+            anyhow::bail!("scene {id} was stopped before its end");
+        }
         let outcome: Vec<serde_json::Value> = self
             .cols
             .header()

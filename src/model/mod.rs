@@ -94,11 +94,13 @@ pub trait Model: std::fmt::Debug + Send + Sync {
     /// Scene `id` run again on the CPU for a closer look (the explorer's
     /// scene panel): its outcome's columns and what the model can show of
     /// its motion, as JSON.
+    /// A long run ends early, with an error, when `stop` is requested.
     fn look(
         &self,
         id: u64,
         scene: Result<Scene, InputError>,
         o: &Overrides,
+        stop: &crate::engine::Stop,
     ) -> anyhow::Result<serde_json::Value>;
 }
 

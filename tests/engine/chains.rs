@@ -1133,3 +1133,27 @@ fn hunt_crossley_contacts_part_at_e_times_their_closing_speed() {
         );
     }
 }
+
+/// A stopped run (the explorer's time limit) ends at its next check
+/// instead of running on, and the explorer's look at it is an error, not
+/// an outcome; an unstopped plan with the same `Stop` runs to its end.
+#[test]
+fn a_stopped_chain_ends_at_its_next_check_and_its_look_fails() {
+    use hertz_cradle::engine::Stop;
+    use hertz_cradle::model::{granular::Granular, Model};
+    let text = struck(400, 0.1, "");
+    let (s, b) = chain(&text);
+    let solver = Solver::resolve(&s, &Overrides::default()).unwrap();
+    let mut plan = granular::plan(&b, &solver, None);
+    plan.stop = Stop::new();
+    let whole = granular::run(&b, &plan, &mut NoRows);
+    assert!(whole.steps > 1000, "{}", whole.steps);
+    plan.stop.request();
+    let stopped = granular::run(&b, &plan, &mut NoRows);
+    assert_eq!(stopped.steps, granular::run::CHECK_EVERY);
+    let model = Granular::new(vec![100, 300], 400, [false; 3]);
+    let look = |stop: &Stop| model.look(7, Ok(s.clone()), &Overrides::default(), stop);
+    let e = look(&plan.stop).unwrap_err().to_string();
+    assert!(e.contains("scene 7 was stopped"), "{e}");
+    assert!(look(&Stop::default()).is_ok());
+}

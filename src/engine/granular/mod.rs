@@ -567,6 +567,9 @@ pub struct Plan {
     pub method: crate::scene::Method,
     /// The tolerance the run is to meet ([`control`]); `None`: a given step.
     pub tolerance: Option<f64>,
+    /// Ends the run early when requested (its outcome then not the
+    /// scene's: [`crate::engine::Stop`]).
+    pub stop: crate::engine::Stop,
 }
 
 impl Plan {
@@ -677,6 +680,7 @@ pub fn plan(beads: &Beads, solver: &Solver, every: Option<f64>) -> Plan {
         every,
         precision: solver.precision,
         tolerance,
+        stop: crate::engine::Stop::default(),
     };
     p.with_step(beads, h, false)
 }

@@ -117,6 +117,11 @@ fn run_in<R: Real>(b: &Beads, plan: &Plan, rows: &mut dyn Rows, whole: bool) -> 
                 status = Status::NonFinite;
                 break;
             }
+            if plan.stop.requested() {
+                // Discarded by whoever stopped it (`Stop`).
+                status = Status::TimeCap;
+                break;
+            }
         }
     }
     if every.is_none_or(|e| !st.steps.is_multiple_of(e)) {
