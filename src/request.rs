@@ -352,13 +352,13 @@ fn trace_output(name: &str, path: &Path) -> Result<PathBuf, InputError> {
         &inputs,
         crate::output::publish::ALONE_COMPANIONS,
     )?;
-    // Traces are CSV: a name that says otherwise is refused, not filled
-    // with CSV (`--trace w.parquet` wrote 358 MB of CSV into it).
-    if TableKind::from_extension(path) != Some(TableKind::Csv) {
+    // A trace's format is its name's: a name that says neither is refused,
+    // never filled with CSV (`--trace w.xlsx`).
+    if TableKind::from_extension(path).is_none() {
         return Err(flag(
             "--trace",
             &path.display().to_string(),
-            "a name ending in .csv (traces are written as CSV)",
+            "a name ending in .csv or .parquet (the trace's format)",
         ));
     }
     Ok(checked)
@@ -575,13 +575,15 @@ impl RunRequest {
         // Written beside the path and published whole (a kill or a full
         // disk leaves the previous trace, never a cut-off one).
         Ok(crate::output::publish::write_alone(path, |w| {
-            let mut tw =
-                crate::output::trace::ChainTraceWriter::new(w, beads, self.trace_beads.clone())
+            crate::output::trace::in_format(path, w, |w| {
+                let mut tw =
+                    crate::output::trace::ChainTraceWriter::new(w, beads, self.trace_beads.clone())
+                        .with_context(|| format!("writing {}", path.display()))?;
+                let traced = crate::backend::rerun_reported(&job, &o, &mut tw, false);
+                tw.finish()
                     .with_context(|| format!("writing {}", path.display()))?;
-            let traced = crate::backend::rerun_reported(&job, &o, &mut tw, false);
-            tw.finish()
-                .with_context(|| format!("writing {}", path.display()))?;
-            Ok(traced)
+                Ok(traced)
+            })
         })?)
     }
 
@@ -645,12 +647,14 @@ impl RunRequest {
         Ok(match &self.trace {
             None => simulate_chain(chain, solver, &mut Silent),
             Some((path, every)) => crate::output::publish::write_alone(path, |w| {
-                let mut tw = crate::output::trace::TraceWriter::new(w, chain, *every)
-                    .with_context(|| format!("writing {}", path.display()))?;
-                let o = simulate_chain(chain, solver, &mut tw);
-                tw.finish()
-                    .with_context(|| format!("writing {}", path.display()))?;
-                Ok(o)
+                crate::output::trace::in_format(path, w, |w| {
+                    let mut tw = crate::output::trace::TraceWriter::new(w, chain, *every)
+                        .with_context(|| format!("writing {}", path.display()))?;
+                    let o = simulate_chain(chain, solver, &mut tw);
+                    tw.finish()
+                        .with_context(|| format!("writing {}", path.display()))?;
+                    Ok(o)
+                })
             })?,
         })
     }

@@ -858,9 +858,53 @@ fn output_names_and_formats_must_agree() {
     success(&["sweep", &sweep, "--out", &at("x.txt"), "--format", "csv"]);
     let text = std::fs::read_to_string(dir.path().join("x.txt")).unwrap();
     assert!(text.starts_with("id,gap,"), "{text}");
-    let e = bad_input(&["run", "cradle-1", "--trace", &at("w.parquet")]);
-    assert!(e.contains("a name ending in .csv"), "{e}");
-    assert!(!dir.path().join("w.parquet").exists());
+    let e = bad_input(&["run", "cradle-1", "--trace", &at("w.xlsx")]);
+    assert!(e.contains("a name ending in .csv or .parquet"), "{e}");
+    assert!(!dir.path().join("w.xlsx").exists());
+}
+
+/// `--trace w.parquet` writes the trace in Parquet: the CSV trace's columns
+/// and the very values (a cradle's and a chain's), which `cradle plot
+/// --trace` draws as it draws the CSV.
+#[test]
+fn a_parquet_trace_holds_the_csv_traces_values() {
+    let dir = tempfile::tempdir().unwrap();
+    let at = |name: &str| dir.path().join(name).display().to_string();
+    let chain = write(
+        &dir,
+        "c.toml",
+        "balls = 40\nradius = 0.005\n[launch]\nballs = 1\nvelocity = 0.1\n[walls]\nright = true\n",
+    );
+    for (scene, name) in [("cradle-1", "cradle"), (chain.as_str(), "chain")] {
+        let (csv, pq) = (at(&format!("{name}.csv")), at(&format!("{name}.parquet")));
+        success(&["run", scene, "--trace", &csv]);
+        success(&["run", scene, "--trace", &pq]);
+        let bytes = std::fs::read(&pq).unwrap();
+        assert_eq!(&bytes[..4], b"PAR1", "{name}");
+        assert!(bytes.len() < std::fs::metadata(&csv).unwrap().len() as usize);
+        // The Parquet trace read back as text is the CSV trace.
+        let (header, rows) =
+            hertz_cradle::output::parquet_file::read_text(std::path::Path::new(&pq)).unwrap();
+        let text = std::fs::read_to_string(&csv).unwrap();
+        let mut lines = text.lines();
+        assert_eq!(lines.next().unwrap(), header.join(","), "{name}");
+        let numbers = |cells: Vec<&str>| -> Vec<f64> {
+            cells.iter().map(|c| c.parse::<f64>().unwrap()).collect()
+        };
+        let mut n = 0;
+        for (line, row) in lines.zip(&rows) {
+            let a = numbers(line.split(',').collect());
+            let b = numbers(row.iter().map(String::as_str).collect());
+            assert!(
+                a.iter().zip(&b).all(|(x, y)| x.to_bits() == y.to_bits()),
+                "{name} row {n}"
+            );
+            n += 1;
+        }
+        assert_eq!(n, rows.len(), "{name}");
+        assert!(n > 10, "{name}: {n} rows");
+        success(&["plot", "--trace", &pq, "--out", &at(&format!("{name}.svg"))]);
+    }
 }
 
 /// Rows are never labelled with values they were not computed with: an

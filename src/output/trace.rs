@@ -6,9 +6,30 @@
 //! pendulum's long steps s), velocities linearly.
 
 use std::io::Write;
+use std::path::Path;
 
 use crate::engine::granular::{step::State, Beads, Rows};
 use crate::engine::{Chain, Observer};
+
+/// Run `write` on a text sink for a trace to `path`, its format by its
+/// name: CSV as written, or for `.parquet`/`.pq` the same columns and
+/// values in Parquet ([`super::parquet_file::TraceParquet`]).
+pub fn in_format<W: Write + Send, T>(
+    path: &Path,
+    w: W,
+    write: impl FnOnce(&mut dyn Write) -> anyhow::Result<T>,
+) -> anyhow::Result<T> {
+    use anyhow::Context;
+    let mut w = w;
+    if super::TableKind::from_extension(path) != Some(super::TableKind::Parquet) {
+        return write(&mut w);
+    }
+    let mut p = super::parquet_file::TraceParquet::new(w);
+    let r = write(&mut p)?;
+    p.close()
+        .with_context(|| format!("writing {}", path.display()))?;
+    Ok(r)
+}
 
 /// The trace row spacing when none is given (s): 400 rows per swing of a
 /// pendulum, 20 per contact of a free line.
