@@ -135,8 +135,11 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             vmax,
             scale,
             cmap,
+            size,
+            dpi,
             out,
         } => {
+            let figure = plot::Figure { size, dpi };
             let input = table.iter().chain(&trace).cloned().collect::<Vec<_>>();
             let tmp = plot::tmp_suffix(&out);
             let out_path = guard::output("--out", &out, &input, &[tmp.as_str(), ".lock"])?;
@@ -144,7 +147,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             // One plot into a file at a time (they would share FILE.tmp.<ext>).
             let _lock = OutputLock::acquire(out)?;
             match (table, trace) {
-                (_, Some(tr)) => plot::trace::plot(&tr, title.as_deref(), out)?,
+                (_, Some(tr)) => plot::trace::plot(&tr, title.as_deref(), &figure, out)?,
                 (Some(t), None) => plot::heatmap::plot(
                     &t,
                     &plot::heatmap::Args {
@@ -157,6 +160,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                         vmax,
                         scale,
                         cmap,
+                        figure,
                     },
                     out,
                 )?,

@@ -294,7 +294,17 @@ fn plots_are_valid_png_and_svg_with_clear_errors() {
     let text = fs::read_to_string(&svg).unwrap();
     assert!(text.starts_with("<svg") && text.trim_end().ends_with("</svg>"));
     assert!(text.contains("test grid: v_2"), "title from the sweep");
-    assert!(text.contains("mass[1] (kg), log scale") && text.contains("gap (m)"));
+    // Ticks as a paper writes them: 0 … 10 µm (not 1.00e-5 m).
+    assert!(text.contains("mass[1] (kg), log scale") && text.contains("gap (µm)"));
+    let labels: Vec<&str> = text
+        .split("</text>")
+        .filter_map(|t| Some(t.rsplit_once('>')?.1.trim()))
+        .collect();
+    assert!(
+        labels.contains(&"10") && labels.contains(&"v_2 (mm/s)"),
+        "{labels:?}"
+    );
+    assert!(!labels.iter().any(|l| l.contains("e-")), "{labels:?}");
     // errors: unknown column (with a suggestion), not a grid, bad extension
     let e = bad_input(&[
         "plot", &csv, "--x", "gap", "--y", "mass[1]", "--z", "ejectd", "--out", &png,
@@ -317,7 +327,7 @@ fn plots_are_valid_png_and_svg_with_clear_errors() {
         ]
         .concat(),
     );
-    assert!(e.contains(".png or .svg"), "{e}");
+    assert!(e.contains(".png, .svg or .pdf"), "{e}");
     let e = bad_input(&[
         "plot",
         &csv,
@@ -405,6 +415,45 @@ fn plots_are_valid_png_and_svg_with_clear_errors() {
     assert_eq!(&fs::read(&tpng).unwrap()[..4], b"\x89PNG");
     let e = bad_input(&["plot", "--trace", &csv, "--out", &tpng]);
     assert!(e.contains("not a trace"), "{e}");
+    // A figure for a paper: a size in inches at a resolution (the PNG's
+    // pixels), a vector PDF with the font embedded; bad sizes refused.
+    let fig = dir.path().join("fig.png").display().to_string();
+    success(
+        &[
+            &[
+                "plot", &csv, "--z", "v_2", "--out", &fig, "--size", "3.4x2.6", "--dpi", "300",
+            ][..],
+            &grid[..],
+        ]
+        .concat(),
+    );
+    let png = fs::read(&fig).unwrap();
+    let be = |at: usize| u32::from_be_bytes(png[at..at + 4].try_into().unwrap());
+    assert_eq!((be(16), be(20)), (1020, 780), "IHDR width, height");
+    let pdf = dir.path().join("fig.pdf").display().to_string();
+    success(&[&["plot", &csv, "--z", "v_2", "--out", &pdf][..], &grid[..]].concat());
+    let bytes = fs::read(&pdf).unwrap();
+    assert_eq!(&bytes[..5], b"%PDF-");
+    let text = String::from_utf8_lossy(&bytes);
+    assert!(
+        text.contains("/FontFile2") && text.contains("DejaVuSans"),
+        "font embedded"
+    );
+    assert!(text.contains("/MediaBox [0 0 691.2 518.4]"), "9.6 x 7.2 in");
+    for (flag, value, want) in [
+        ("--size", "3by4", "WIDTHxHEIGHT"),
+        ("--size", "0.5x4", "at least 1"),
+        ("--dpi", "5000", "10 to 1200"),
+    ] {
+        let e = bad_input(
+            &[
+                &["plot", &csv, "--z", "v_2", "--out", &fig, flag, value][..],
+                &grid[..],
+            ]
+            .concat(),
+        );
+        assert!(e.contains(want), "{flag} {value}: {e}");
+    }
 }
 
 /// FNV-1a, 64 bits: a fingerprint of a whole output file.
@@ -656,8 +705,10 @@ fn a_granular_chain_runs_with_its_probes_walls_and_record() {
     success(&["plot", "--trace", lt, "--out", svg.to_str().unwrap()]);
     let text = fs::read_to_string(&svg).unwrap();
     assert!(text.contains("long: 100 beads recorded"), "title");
-    assert!(text.contains("velocity v_b (m/s)") && text.contains("force of contact (b, b+1) (N)"));
-    // The striker's 0.1 m/s is the largest speed: the scale's full red is in the image.
+    assert!(text.contains("velocity v_b (mm/s)") && text.contains("force of contact (b, b+1) (N)"));
+    assert!(text.contains("t (ms)"), "SI-prefixed time");
+    // The striker's 0.1 m/s is above the colour limit (the wave's ~0.07
+    // m/s): its cells take the scale's full red.
     assert!(text.contains("#B2182B"), "no saturated cell");
     // --trace-dt must agree with [record] every; a chain sweep refuses the
     // settings it cannot honour.

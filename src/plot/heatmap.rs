@@ -18,7 +18,8 @@ use plotters::prelude::*;
 use plotters::style::colors::colormaps::{BlackWhite, Copper, ViridisRGB};
 
 use super::data::{distinct, log_spaced, Table};
-use super::{drawing, fonts, label, FONT};
+use super::ticks::{number, Ticks};
+use super::{drawing, fonts, label, px, unit, FONT};
 use crate::error::InputError;
 
 /// Tableau's ten colours: the discrete palette.
@@ -48,6 +49,8 @@ pub struct Args {
     pub vmax: Option<f64>,
     pub scale: Scale,
     pub cmap: Cmap,
+    /// Size and resolution (`--size`, `--dpi`).
+    pub figure: super::Figure,
 }
 
 impl Default for Args {
@@ -62,6 +65,7 @@ impl Default for Args {
             vmax: None,
             scale: Scale::Auto,
             cmap: Cmap::Viridis,
+            figure: super::Figure::default(),
         }
     }
 }
@@ -147,6 +151,8 @@ struct Axis {
     integers: usize,
     /// Cell edges in plot coordinates (log10 of the value on a log axis).
     edges: Vec<f64>,
+    /// A numeric axis's ticks and how they read (SI prefix, ×10ᵏ).
+    ticks: Option<Ticks>,
 }
 
 impl Axis {
@@ -168,8 +174,8 @@ impl Axis {
             }
             edges.push(t[n - 1] + 0.5 * (t[n - 1] - t[n - 2]));
         }
-        Axis {
-            label: label(col) + if log { ", log scale" } else { "" },
+        let mut a = Axis {
+            label: label(col),
             log,
             integers: if values.len() <= 20 && values.iter().all(|v| v.fract() == 0.0) {
                 values.len()
@@ -178,60 +184,50 @@ impl Axis {
             },
             cats,
             edges,
+            ticks: None,
+        };
+        if a.cats.is_none() {
+            let keys = a.key_points();
+            let ticks = if log {
+                let (lo, hi) = (a.edges[0], a.edges[a.edges.len() - 1]);
+                Ticks::log(col, unit(col), keys, (hi - lo).abs())
+            } else {
+                Ticks::linear(col, unit(col), keys)
+            };
+            a.label = ticks.label.clone();
+            a.ticks = Some(ticks);
         }
+        a
     }
 
     fn format(&self, v: f64) -> String {
-        match &self.cats {
-            Some(c) if (v - v.round()).abs() < 1e-6 && v >= 0.0 => {
+        match (&self.cats, &self.ticks) {
+            (Some(c), _) if (v - v.round()).abs() < 1e-6 && v >= 0.0 => {
                 c.get(v.round() as usize).cloned().unwrap_or_default()
             }
-            Some(_) => String::new(),
-            None => number(if self.log { 10f64.powf(v) } else { v }),
+            (Some(_), _) => String::new(),
+            (None, Some(t)) => t.format(v),
+            (None, None) => number(if self.log { 10f64.powf(v) } else { v }),
         }
     }
 
     /// Where the ticks go (plot coordinates): on a log axis 1, 2 and 5 ×
     /// 10^k within the axis when it spans at most three decades, else powers
     /// of ten (every k-th, at most ~8); elsewhere plotters' own choice for
-    /// [`Axis::ticks`] labels.
+    /// [`Axis::tick_count`] labels.
     fn key_points(&self) -> Vec<f64> {
+        if let Some(t) = &self.ticks {
+            return t.at.clone();
+        }
         let (a, b) = (self.edges[0], self.edges[self.edges.len() - 1]);
         if !self.log || self.integers > 0 {
-            return RangedCoordf64::from(a..b).key_points(self.ticks());
+            return RangedCoordf64::from(a..b).key_points(self.tick_count());
         }
-        let (lo, hi) = (a.min(b), a.max(b));
-        let mults: &[f64] = if hi - lo <= 3.0 {
-            &[1.0, 2.0, 5.0]
-        } else {
-            &[1.0]
-        };
-        // Decades with a tick: those of 1, 2, 5 × 10^k, or the powers inside.
-        let k0 = if mults.len() > 1 {
-            lo.floor()
-        } else {
-            (lo - 1e-9).ceil()
-        } as i32;
-        let k1 = (hi + 1e-9).floor() as i32;
-        let every = if mults.len() > 1 {
-            1
-        } else {
-            ((k1 - k0 + 1) as usize).div_ceil(8)
-        };
-        let mut t = vec![];
-        for k in (k0..=k1).step_by(every) {
-            for m in mults {
-                let c = (m * 10f64.powi(k)).log10();
-                if c >= lo - 1e-9 && c <= hi + 1e-9 {
-                    t.push(c);
-                }
-            }
-        }
-        t
+        log_keys(a.min(b), a.max(b))
     }
 
     /// Tick labels to ask for: one per category or per integer value.
-    fn ticks(&self) -> usize {
+    fn tick_count(&self) -> usize {
         match &self.cats {
             Some(c) => c.len() + 1,
             None if self.integers > 0 => self.integers + 1,
@@ -240,15 +236,48 @@ impl Axis {
     }
 }
 
+/// Ticks of a log axis over log10 values `lo..hi`: 1, 2 and 5 × 10^k
+/// when it spans at most three decades, else powers of ten (every k-th, at
+/// most ~8).
+fn log_keys(lo: f64, hi: f64) -> Vec<f64> {
+    let mults: &[f64] = if hi - lo <= 3.0 {
+        &[1.0, 2.0, 5.0]
+    } else {
+        &[1.0]
+    };
+    // Decades with a tick: those of 1, 2, 5 × 10^k, or the powers inside.
+    let k0 = if mults.len() > 1 {
+        lo.floor()
+    } else {
+        (lo - 1e-9).ceil()
+    } as i32;
+    let k1 = (hi + 1e-9).floor() as i32;
+    let every = if mults.len() > 1 {
+        1
+    } else {
+        ((k1 - k0 + 1) as usize).div_ceil(8)
+    };
+    let mut t = vec![];
+    for k in (k0..=k1).step_by(every) {
+        for m in mults {
+            let c = (m * 10f64.powi(k)).log10();
+            if c >= lo - 1e-9 && c <= hi + 1e-9 {
+                t.push(c);
+            }
+        }
+    }
+    t
+}
+
 /// A plot coordinate with its ticks at given places (plotters'
 /// `WithKeyPoints` has no label formatter for f64).
-struct Ticked {
+pub struct Ticked {
     inner: RangedCoordf64,
     keys: Vec<f64>,
 }
 
 impl Ticked {
-    fn new(r: std::ops::Range<f64>, keys: Vec<f64>) -> Ticked {
+    pub fn new(r: std::ops::Range<f64>, keys: Vec<f64>) -> Ticked {
         Ticked {
             inner: r.into(),
             keys,
@@ -292,25 +321,6 @@ fn coords(t: &Table, i: usize) -> (Vec<f64>, Option<Vec<String>>) {
         })
         .collect();
     (v, Some(cats))
-}
-
-/// A tick label: 3 significant digits.
-pub fn number(v: f64) -> String {
-    number_in(v, 0.0)
-}
-
-/// A tick label on an axis spanning `span`: values within 1e-9·span of zero
-/// (round-off of the tick positions) print as 0.
-pub fn number_in(v: f64, span: f64) -> String {
-    if v == 0.0 || v.abs() < 1e-9 * span {
-        "0".into()
-    } else if !(1e-3..1e4).contains(&v.abs()) {
-        format!("{v:.2e}")
-    } else {
-        let s = format!("{v:.3}");
-        let s = s.trim_end_matches('0').trim_end_matches('.');
-        s.to_string()
-    }
 }
 
 enum Colours {
@@ -394,7 +404,8 @@ fn colours(a: &Args, zf: &[f64], uz: Vec<f64>) -> Result<Colours, InputError> {
 }
 
 /// Palette slot of a discrete value: small non-negative integers keep their
-/// own colour in every plot (ejected = 1 is always blue); else by rank.
+/// own colour in every plot (ejected = 1 is always orange), as in the
+/// explorer's map; else by rank.
 fn slot(vals: &[f64], z: f64) -> usize {
     if vals
         .iter()
@@ -513,9 +524,10 @@ pub fn plot(input: &Path, a: &Args, out: &Path) -> Result<()> {
         ay,
         cells,
         colours,
+        z: a.z.clone(),
         z_label: label(&a.z),
     };
-    crate::with_canvas!(out, (960, 720), |area| draw(area, &grid))
+    crate::with_canvas!(out, &a.figure, (9.6, 7.2), |area| draw(area, &grid))
 }
 
 struct Grid {
@@ -524,19 +536,21 @@ struct Grid {
     ay: Axis,
     cells: HashMap<(usize, usize), f64>,
     colours: Colours,
+    /// The coloured column.
+    z: String,
     z_label: String,
 }
 
 fn draw<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, g: &Grid) -> Result<()> {
     area.fill(&WHITE).map_err(drawing)?;
     let w = area.dim_in_pixel().0 as i32;
-    let (main, bar) = area.split_horizontally(w - 170);
+    let (main, bar) = area.split_horizontally(w - px(170) as i32);
     let (ex, ey) = (&g.ax.edges, &g.ay.edges);
     let mut ch = ChartBuilder::on(&main)
-        .caption(&g.title, (FONT, 20))
-        .margin(15)
-        .x_label_area_size(55)
-        .y_label_area_size(85)
+        .caption(&g.title, (FONT, px(20)))
+        .margin(px(15))
+        .x_label_area_size(px(55))
+        .y_label_area_size(px(85))
         .build_cartesian_2d(
             Ticked::new(ex[0]..ex[ex.len() - 1], g.ax.key_points()),
             Ticked::new(ey[0]..ey[ey.len() - 1], g.ay.key_points()),
@@ -550,10 +564,10 @@ fn draw<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, g: &Grid) -> Result<(
         .y_desc(&g.ay.label)
         .x_label_formatter(&fx)
         .y_label_formatter(&fy)
-        .x_labels(g.ax.ticks())
-        .y_labels(g.ay.ticks())
-        .label_style((FONT, 14))
-        .axis_desc_style((FONT, 16))
+        .x_labels(g.ax.tick_count())
+        .y_labels(g.ay.tick_count())
+        .label_style((FONT, px(14)))
+        .axis_desc_style((FONT, px(16)))
         .draw()
         .map_err(drawing)?;
     let mut rects = Vec::new();
@@ -572,9 +586,9 @@ fn draw<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, g: &Grid) -> Result<(
             // swatches from the top, one per value
             let n = (vals.len() as f64 + 1.0).max(8.0);
             let mut lg = ChartBuilder::on(&bar)
-                .caption(&g.z_label, (FONT, 16))
-                .margin(20)
-                .margin_top(60)
+                .caption(&g.z_label, (FONT, px(16)))
+                .margin(px(20))
+                .margin_top(px(60))
                 .build_cartesian_2d(0.0..3.0, -0.5..n - 0.5)
                 .map_err(drawing)?;
             let mut keys: Vec<(RGBColor, String)> = vals
@@ -583,7 +597,7 @@ fn draw<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, g: &Grid) -> Result<(
                 .collect();
             let cells = (ex.len() - 1) * (ey.len() - 1);
             if g.cells.values().filter(|z| z.is_finite()).count() < cells {
-                keys.push((MISSING, "none".into()));
+                keys.push((MISSING, "no value".into()));
             }
             lg.draw_series(keys.iter().enumerate().map(|(i, (c, _))| {
                 let y = n - 1.0 - i as f64;
@@ -594,7 +608,7 @@ fn draw<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, g: &Grid) -> Result<(
                 Text::new(
                     t.clone(),
                     (1.2, n - 1.0 - i as f64 + 0.25),
-                    (FONT, 16).into_font(),
+                    (FONT, px(16)).into_font(),
                 )
             }))
             .map_err(drawing)?;
@@ -605,21 +619,26 @@ fn draw<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, g: &Grid) -> Result<(
             } else {
                 (lo - 0.5, hi + 0.5)
             };
+            let ticks = if *log {
+                Ticks::log(&g.z, unit(&g.z), log_keys(lo, hi), hi - lo)
+            } else {
+                Ticks::over(&g.z, unit(&g.z), lo, hi, 10)
+            };
             let mut cb = ChartBuilder::on(&bar)
-                .margin(20)
-                .margin_top(60)
-                .margin_bottom(70)
-                .y_label_area_size(70)
-                .build_cartesian_2d(0.0..1.0, lo..hi)
+                .margin(px(20))
+                .margin_top(px(60))
+                .margin_bottom(px(70))
+                .y_label_area_size(px(70))
+                .build_cartesian_2d(0.0..1.0, Ticked::new(lo..hi, ticks.at.clone()))
                 .map_err(drawing)?;
-            let fz = |v: &f64| number(if *log { 10f64.powf(*v) } else { *v });
+            let fz = |v: &f64| ticks.format(*v);
             cb.configure_mesh()
                 .disable_mesh()
                 .disable_x_axis()
-                .y_desc(g.z_label.clone() + if *log { ", log scale" } else { "" })
+                .y_desc(&ticks.label)
                 .y_label_formatter(&fz)
-                .label_style((FONT, 13))
-                .axis_desc_style((FONT, 15))
+                .label_style((FONT, px(13)))
+                .axis_desc_style((FONT, px(15)))
                 .draw()
                 .map_err(drawing)?;
             let log = *log;
@@ -634,7 +653,7 @@ fn draw<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, g: &Grid) -> Result<(
 /// A colour bar's strip: 200 bands from `lo` to `hi` of the bar's value
 /// axis, each coloured at its middle.
 pub fn colour_strip<DB: DrawingBackend>(
-    cb: &mut ChartContext<'_, DB, Cartesian2d<RangedCoordf64, RangedCoordf64>>,
+    cb: &mut ChartContext<'_, DB, Cartesian2d<RangedCoordf64, Ticked>>,
     (lo, hi): (f64, f64),
     colour: impl Fn(f64) -> RGBColor,
 ) -> Result<()> {
@@ -669,7 +688,7 @@ mod tests {
         let eight_decades: Vec<f64> = (0..9).map(|k| 10f64.powi(k - 12)).collect();
         assert_eq!(
             labels(&eight_decades),
-            ["1.00e-12", "1.00e-10", "1.00e-8", "1.00e-6", "1.00e-4"]
+            ["10⁻¹²", "10⁻¹⁰", "10⁻⁸", "10⁻⁶", "10⁻⁴"]
         );
         // A linear axis keeps plotters' choice.
         let lin: Vec<f64> = (0..40).map(|k| k as f64 * 5e-7).collect();

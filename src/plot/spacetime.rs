@@ -16,8 +16,9 @@ use plotters::coord::Shift;
 use plotters::prelude::*;
 use plotters::style::colors::colormaps::ViridisRGB;
 
-use super::heatmap::{number, number_in};
-use super::{drawing, FONT};
+use super::heatmap::Ticked;
+use super::ticks::Ticks;
+use super::{drawing, px, FONT};
 
 /// A trace of at most this many beads is drawn as lines (positions and
 /// velocities against time); above, as space-time images.
@@ -76,18 +77,44 @@ impl Scale {
     }
 }
 
-/// The largest finite |value| (1 if none).
-fn largest(rows: &[Vec<f64>]) -> f64 {
-    let m = rows
-        .iter()
-        .flatten()
-        .filter(|x| x.is_finite())
-        .fold(0.0f64, |m, x| m.max(x.abs()));
-    if m > 0.0 {
-        m
-    } else {
-        1.0
+/// The colour limit of a history: the 95th percentile over samples of
+/// each sample's largest finite |value| across beads (1 if none), so that
+/// a striker's speed over the first few samples does not wash out the
+/// slower wave it launches (the larger values take the end colours).
+fn robust(rows: &[Vec<f64>]) -> f64 {
+    let n = rows.first().map_or(0, Vec::len);
+    let mut m: Vec<f64> = (0..n)
+        .map(|k| {
+            rows.iter()
+                .map(|r| r[k])
+                .filter(|x| x.is_finite())
+                .fold(0.0f64, |m, x| m.max(x.abs()))
+        })
+        .filter(|&x| x > 0.0)
+        .collect();
+    if m.is_empty() {
+        return 1.0;
     }
+    m.sort_by(f64::total_cmp);
+    m[((m.len() - 1) as f64 * 0.95).round() as usize]
+}
+
+/// A force history less each contact's force at the first sample (a
+/// precompressed chain's static preload), if any is not 0.
+fn less_preload(f: &[Vec<f64>]) -> Option<Vec<Vec<f64>>> {
+    if f.iter()
+        .all(|r| r.first().is_none_or(|x| *x == 0.0 || !x.is_finite()))
+    {
+        return None;
+    }
+    Some(
+        f.iter()
+            .map(|r| {
+                let f0 = if r[0].is_finite() { r[0] } else { 0.0 };
+                r.iter().map(|x| x - f0).collect()
+            })
+            .collect(),
+    )
 }
 
 /// Index of the element of ascending `xs` nearest `x`.
@@ -170,26 +197,37 @@ pub fn raster(
         .collect()
 }
 
-/// Draw the images: velocity above, force below (if recorded).
+/// Draw the images: velocity above, force below (if recorded; less its
+/// static preload when the chain starts compressed).
 pub fn draw<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, h: &Histories) -> Result<()> {
     area.fill(&WHITE).map_err(drawing)?;
-    let area = area.titled(&h.title, (FONT, 20)).map_err(drawing)?;
-    let vs = Scale::Diverging(largest(&h.v));
+    let area = area.titled(&h.title, (FONT, px(20))).map_err(drawing)?;
+    let vs = Scale::Diverging(robust(&h.v));
+    let v_what = ("velocity v_b", "m/s");
     if h.f_beads.is_empty() {
-        return image(&area, h, &h.beads, &h.v, vs, "velocity v_b (m/s)");
+        return image(&area, h, &h.beads, &h.v, vs, v_what);
     }
     let hgt = area.dim_in_pixel().1 as i32;
     let (top, bottom) = area.split_vertically(hgt / 2);
-    image(&top, h, &h.beads, &h.v, vs, "velocity v_b (m/s)")?;
-    let fs = Scale::Sequential(0.0, largest(&h.f));
-    image(
-        &bottom,
-        h,
-        &h.f_beads,
-        &h.f,
-        fs,
-        "force of contact (b, b+1) (N)",
-    )
+    image(&top, h, &h.beads, &h.v, vs, v_what)?;
+    match less_preload(&h.f) {
+        Some(df) => image(
+            &bottom,
+            h,
+            &h.f_beads,
+            &df,
+            Scale::Diverging(robust(&df)),
+            ("force of contact (b, b+1) − at t = 0", "N"),
+        ),
+        None => image(
+            &bottom,
+            h,
+            &h.f_beads,
+            &h.f,
+            Scale::Sequential(0.0, robust(&h.f)),
+            ("force of contact (b, b+1)", "N"),
+        ),
+    }
 }
 
 /// One image with its axes and colour bar.
@@ -199,25 +237,26 @@ fn image<DB: DrawingBackend>(
     beads: &[usize],
     rows: &[Vec<f64>],
     scale: Scale,
-    what: &str,
+    what: (&str, &str),
 ) -> Result<()> {
     let w = area.dim_in_pixel().0 as i32;
-    let (main, bar) = area.split_horizontally(w - 150);
+    let (main, bar) = area.split_horizontally(w - px(150) as i32);
     let ((t0, t1), (b0, b1)) = extent(&h.t, beads);
+    let tt = Ticks::over("t", Some("s"), t0, t1, 10);
     let mut ch = ChartBuilder::on(&main)
-        .margin(12)
-        .x_label_area_size(45)
-        .y_label_area_size(70)
-        .build_cartesian_2d(t0..t1, b0..b1)
+        .margin(px(12))
+        .x_label_area_size(px(45))
+        .y_label_area_size(px(70))
+        .build_cartesian_2d(Ticked::new(t0..t1, tt.at.clone()), b0..b1)
         .map_err(drawing)?;
     ch.configure_mesh()
         .disable_mesh()
-        .x_desc("t (s)")
+        .x_desc(&tt.label)
         .y_desc("bead")
-        .x_label_formatter(&|v| number(*v))
+        .x_label_formatter(&|v| tt.format(*v))
         .y_label_formatter(&|v| format!("{:.0}", v))
-        .label_style((FONT, 13))
-        .axis_desc_style((FONT, 15))
+        .label_style((FONT, px(13)))
+        .axis_desc_style((FONT, px(15)))
         .draw()
         .map_err(drawing)?;
     let pa = ch.plotting_area();
@@ -246,22 +285,23 @@ fn image<DB: DrawingBackend>(
 fn colour_bar<DB: DrawingBackend>(
     bar: &DrawingArea<DB, Shift>,
     scale: Scale,
-    what: &str,
+    (name, unit): (&str, &str),
 ) -> Result<()> {
     let (lo, hi) = scale.range();
+    let ticks = Ticks::over(name, Some(unit), lo, hi, 10);
     let mut cb = ChartBuilder::on(bar)
-        .margin(12)
-        .margin_bottom(57)
-        .y_label_area_size(75)
-        .build_cartesian_2d(0.0..1.0, lo..hi)
+        .margin(px(12))
+        .margin_bottom(px(57))
+        .y_label_area_size(px(75))
+        .build_cartesian_2d(0.0..1.0, Ticked::new(lo..hi, ticks.at.clone()))
         .map_err(drawing)?;
     cb.configure_mesh()
         .disable_mesh()
         .disable_x_axis()
-        .y_desc(what)
-        .y_label_formatter(&|v| number_in(*v, hi - lo))
-        .label_style((FONT, 12))
-        .axis_desc_style((FONT, 13))
+        .y_desc(&ticks.label)
+        .y_label_formatter(&|v| ticks.format(*v))
+        .label_style((FONT, px(12)))
+        .axis_desc_style((FONT, px(13)))
         .draw()
         .map_err(drawing)?;
     super::heatmap::colour_strip(&mut cb, (lo, hi), |z| scale.of(z))
@@ -314,5 +354,22 @@ mod tests {
         assert_eq!(s.of(0.0), RGBColor(255, 255, 255));
         assert_eq!(s.of(-2.0), RGBColor(33, 102, 172));
         assert_eq!(s.of(5.0), RGBColor(178, 24, 43));
+    }
+
+    #[test]
+    fn a_striker_does_not_wash_out_the_wave_nor_a_preload_the_force() {
+        // 100 samples, 50 beads: a striker at 0.1 m/s over the first 3
+        // samples, then a 0.014 m/s wave moving along.
+        let mut v = vec![vec![0.0; 100]; 50];
+        for k in 0..100 {
+            v[(k / 2).min(49)][k] = if k < 3 { 0.1 } else { 0.014 };
+        }
+        assert_eq!(robust(&v), 0.014);
+        assert_eq!(robust(&[vec![0.0; 5]]), 1.0);
+        // A 10 N preload under a 0.01 N wave: the wave is what is left.
+        let f = vec![vec![10.0, 10.0, 10.01, 10.0], vec![10.0, 10.0, 10.0, 10.01]];
+        let df = less_preload(&f).expect("a preload");
+        assert!((robust(&df) - 0.01).abs() < 1e-12);
+        assert!(less_preload(&[vec![0.0, 1.0]]).is_none());
     }
 }

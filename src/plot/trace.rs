@@ -6,13 +6,13 @@
 use std::path::Path;
 
 use anyhow::Result;
-use plotters::coord::types::RangedCoordf64;
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
 use super::data::Table;
-use super::heatmap::{number, number_in};
-use super::{drawing, fonts, FONT};
+use super::heatmap::Ticked;
+use super::ticks::{si, Ticks};
+use super::{drawing, fonts, px, FONT};
 use crate::error::InputError;
 
 /// Most points drawn per line (longer traces are thinned evenly).
@@ -38,7 +38,7 @@ fn bead_columns(header: &[String], prefix: &str) -> Vec<(usize, usize)> {
         .collect()
 }
 
-pub fn plot(input: &Path, title: Option<&str>, out: &Path) -> Result<()> {
+pub fn plot(input: &Path, title: Option<&str>, fig: &super::Figure, out: &Path) -> Result<()> {
     fonts();
     super::Format::of(out)?;
     let table = Table::read(input)?;
@@ -85,7 +85,9 @@ pub fn plot(input: &Path, title: Option<&str>, out: &Path) -> Result<()> {
             f_beads: fs.iter().map(|b| b.0).collect(),
             f: fs.iter().map(|b| column(b.1)).collect::<Result<_, _>>()?,
         };
-        return crate::with_canvas!(out, (1000, 900), |area| super::spacetime::draw(area, &h));
+        return crate::with_canvas!(out, fig, (10.0, 9.0), |area| {
+            super::spacetime::draw(area, &h)
+        });
     }
     let every = table.rows.len().div_ceil(MAX_POINTS).max(1);
     let keep = |col: Vec<f64>| -> Vec<f64> {
@@ -117,7 +119,7 @@ pub fn plot(input: &Path, title: Option<&str>, out: &Path) -> Result<()> {
         beads: xs.iter().map(|b| b.0).collect(),
         spacing: if amp > 0.0 { amp } else { 1.0 },
     };
-    crate::with_canvas!(out, (1000, 800), |area| draw(area, &trace))
+    crate::with_canvas!(out, fig, (10.0, 8.0), |area| draw(area, &trace))
 }
 
 fn range(vals: impl Iterator<Item = f64>) -> (f64, f64) {
@@ -137,27 +139,29 @@ fn range(vals: impl Iterator<Item = f64>) -> (f64, f64) {
     }
 }
 
-/// One panel against time: axes t (s) and `y` labelled `y_desc`.
+/// One panel against time: axes t and `y`, quantity `name` in `unit`
+/// (both with SI-prefixed ticks; `note` follows the y label).
 fn panel<'a, DB: DrawingBackend>(
     area: &DrawingArea<DB, Shift>,
     t: std::ops::Range<f64>,
     y: std::ops::Range<f64>,
-    y_desc: &str,
-) -> Result<ChartContext<'a, DB, Cartesian2d<RangedCoordf64, RangedCoordf64>>> {
-    let span = y.end - y.start;
+    (name, unit, note): (&str, &str, &str),
+) -> Result<ChartContext<'a, DB, Cartesian2d<Ticked, Ticked>>> {
+    let tt = Ticks::over("t", Some("s"), t.start, t.end, 10);
+    let ty = Ticks::over(name, Some(unit), y.start, y.end, 10);
     let mut ch = ChartBuilder::on(area)
-        .margin(12)
-        .x_label_area_size(45)
-        .y_label_area_size(85)
-        .build_cartesian_2d(t, y)
+        .margin(px(12))
+        .x_label_area_size(px(45))
+        .y_label_area_size(px(85))
+        .build_cartesian_2d(Ticked::new(t, tt.at.clone()), Ticked::new(y, ty.at.clone()))
         .map_err(drawing)?;
     ch.configure_mesh()
-        .x_desc("t (s)")
-        .y_desc(y_desc)
-        .x_label_formatter(&|v| number(*v))
-        .y_label_formatter(&|v| number_in(*v, span))
-        .label_style((FONT, 13))
-        .axis_desc_style((FONT, 15))
+        .x_desc(&tt.label)
+        .y_desc(ty.label.clone() + note)
+        .x_label_formatter(&|v| tt.format(*v))
+        .y_label_formatter(&|v| ty.format(*v))
+        .label_style((FONT, px(13)))
+        .axis_desc_style((FONT, px(15)))
         .draw()
         .map_err(drawing)?;
     Ok(ch)
@@ -165,7 +169,7 @@ fn panel<'a, DB: DrawingBackend>(
 
 fn draw<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, tr: &Trace) -> Result<()> {
     area.fill(&WHITE).map_err(drawing)?;
-    let area = area.titled(&tr.title, (FONT, 20)).map_err(drawing)?;
+    let area = area.titled(&tr.title, (FONT, px(20))).map_err(drawing)?;
     let h = area.dim_in_pixel().1 as i32;
     let (top, bottom) = area.split_vertically(h * 3 / 5);
     let (t0, t1) = (tr.t[0], tr.t[tr.t.len() - 1]);
@@ -176,31 +180,33 @@ fn draw<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, tr: &Trace) -> Result
             .enumerate()
             .flat_map(|(i, x)| x.iter().map(move |a| i as f64 * s + a)),
     );
-    let y_desc = format!("position x_i + i·s (m), s = {}", number(s));
-    let mut ch = panel(&top, t0..t1, ylo..yhi, &y_desc)?;
+    let note = format!(", s = {}", si(s, "m"));
+    let mut ch = panel(&top, t0..t1, ylo..yhi, ("position x_i + i·s", "m", &note))?;
     for (i, x) in tr.x.iter().enumerate() {
         let c = colour(i);
         ch.draw_series(LineSeries::new(
             tr.t.iter().zip(x).map(|(&t, &a)| (t, i as f64 * s + a)),
-            c.stroke_width(2),
+            c.stroke_width(px(2)),
         ))
         .map_err(drawing)?
         .label(format!("ball {}", tr.beads[i]))
-        .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], c.stroke_width(3)));
+        .legend(move |(x, y)| {
+            PathElement::new(vec![(x, y), (x + px(18) as i32, y)], c.stroke_width(px(3)))
+        });
     }
     ch.configure_series_labels()
         .position(SeriesLabelPosition::UpperLeft)
-        .label_font((FONT, 13))
+        .label_font((FONT, px(13)))
         .background_style(WHITE.mix(0.8))
         .border_style(BLACK)
         .draw()
         .map_err(drawing)?;
     let (vlo, vhi) = range(tr.v.iter().flatten().copied());
-    let mut cv = panel(&bottom, t0..t1, vlo..vhi, "velocity v_i (m/s)")?;
+    let mut cv = panel(&bottom, t0..t1, vlo..vhi, ("velocity v_i", "m/s", ""))?;
     for (i, v) in tr.v.iter().enumerate() {
         cv.draw_series(LineSeries::new(
             tr.t.iter().zip(v).map(|(&t, &a)| (t, a)),
-            colour(i).stroke_width(2),
+            colour(i).stroke_width(px(2)),
         ))
         .map_err(drawing)?;
     }
