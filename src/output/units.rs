@@ -12,7 +12,10 @@ pub fn unit(col: &str) -> Option<&'static str> {
         "mass" => "kg",
         "density" => "kg/m³",
         "young_modulus" => "Pa",
-        "velocity" | "pulse_speed" => "m/s",
+        "velocity" | "pulse_speed" | "shock_speed" => "m/s",
+        "viscosity" => "N·s/m",
+        "frequency" => "Hz",
+        "piston_work" | "energy_dissipated" => "J",
         "gravity" | "g" => "m/s²",
         "duration" | "t_contact" | "t_release" | "dt" | "t" | "t_end" | "every" => "s",
         "air_drag" => "1/s",
@@ -21,7 +24,7 @@ pub fn unit(col: &str) -> Option<&'static str> {
         _ if base.starts_with("wall_") && base.ends_with("_peak_force") => "N",
         _ if base.starts_with("wall_") && base.ends_with("_impulse") => "N·s",
         _ if base.starts_with("arrival_") => "s",
-        _ if base.starts_with("peak_v_") => "m/s",
+        _ if base.starts_with("peak_v_") || base.starts_with("amplitude_") => "m/s",
         _ if base.starts_with("peak_f_") || base.starts_with("f_") => "N",
         _ if base.starts_with("v_") => "m/s",
         _ if base.starts_with("x_") => "m",
@@ -49,6 +52,11 @@ mod tests {
         assert_eq!(label("arrival_250"), "arrival_250 (s)");
         assert_eq!(label("wall_right_impulse"), "wall_right_impulse (N·s)");
         assert_eq!(label("f_wall_left"), "f_wall_left (N)");
+        assert_eq!(label("damping.viscosity"), "damping.viscosity (N·s/m)");
+        assert_eq!(label("drive.frequency"), "drive.frequency (Hz)");
+        assert_eq!(label("piston.velocity"), "piston.velocity (m/s)");
+        assert_eq!(label("amplitude_30"), "amplitude_30 (m/s)");
+        assert_eq!(label("energy_dissipated"), "energy_dissipated (J)");
         for none in [
             "ejected",
             "energy_left",
