@@ -22,7 +22,7 @@ import os
 import sys
 import tempfile
 import time
-from typing import Any, Callable, Dict, List, Mapping, Optional, Tuple, Union
+from typing import Any, Callable, Dict, List, Mapping, Optional, Sequence, Tuple, Union
 
 import pyarrow as pa
 import pyarrow.csv as pcsv
@@ -30,7 +30,7 @@ import pyarrow.parquet as pq
 
 from . import _native
 
-__all__ = ["sweep", "run", "optimize", "scenes", "__version__"]
+__all__ = ["sweep", "run", "optimize", "evaluate", "scenes", "__version__"]
 __version__: str = _native.__version__
 
 Spec = Union[str, "os.PathLike[str]", Mapping[str, Any]]
@@ -266,6 +266,72 @@ def optimize(
             threads=None if threads is None else int(threads),
         )
         return _read_table(target, summary["columns"]), summary["best_scene"]
+
+
+def evaluate(
+    spec: Spec,
+    designs: Sequence[Union[Sequence[Union[float, str]], Mapping[str, Union[float, str]]]],
+    *,
+    backend: str = "auto",
+    precision: Optional[str] = None,
+    tolerance: Optional[float] = None,
+    method: Optional[str] = None,
+    model: Optional[str] = None,
+    threads: Optional[int] = None,
+) -> pa.Table:
+    """Run designs of an optimisation problem as one batch: the engine's
+    evaluation for an optimiser of your own (ask/tell with pycma, Optuna,
+    nevergrad: they ask for designs, these rows tell them the objective).
+
+    ``spec`` is a problem as :func:`optimize` takes it; ``designs`` a list
+    of designs, each a mapping from variable name (``"radius[3]"``) to its
+    value or a sequence of the values in the problem's variable order (the
+    table's columns after ``feasible``). Values are the variables' own
+    (metres, pascals, a choice), inside their ranges or among their choices
+    (outside: ``ValueError`` naming the design, the variable and what it
+    allows).
+
+    Returns a table with one row per design, in order, as ``cradle
+    optimize`` writes a generation (``generation`` 0, ``candidate`` k,
+    ``feasible``, each variable, ``total_mass``, the model's outcome
+    columns, ``status``: a row that misses its tolerance says so).
+    """
+    path, text, is_json, name = _document(spec, "problem")
+    flags = dict(
+        backend=backend,
+        precision=precision,
+        tolerance=None if tolerance is None else float(tolerance),
+        method=method,
+        model=model,
+        threads=None if threads is None else int(threads),
+    )
+    with tempfile.TemporaryDirectory(prefix="hertz_cradle_") as tmp:
+        target = os.path.join(tmp, "designs.parquet")
+        rows: List[List[Union[float, str]]] = []
+        if any(isinstance(d, Mapping) for d in designs):
+            # The variables' order: the table's columns after `feasible`.
+            columns = _native.evaluate(path, text, is_json, name, os.getcwd(), target, "[]", **flags)
+            names = [c for c, _ in columns][3:]
+            names = names[: names.index("total_mass")]
+            for k, d in enumerate(designs):
+                if isinstance(d, Mapping):
+                    unknown = sorted(set(d) - set(names))
+                    missing = [n for n in names if n not in d]
+                    if unknown or missing:
+                        raise ValueError(
+                            f"design {k}: the problem's variables are {', '.join(names)}"
+                            + (f"; unknown: {', '.join(unknown)}" if unknown else "")
+                            + (f"; missing: {', '.join(missing)}" if missing else "")
+                        )
+                    d = [d[n] for n in names]
+                rows.append(list(d))
+        else:
+            rows = [list(d) for d in designs]
+        plain = [[v if isinstance(v, str) else float(v) for v in r] for r in rows]
+        columns = _native.evaluate(
+            path, text, is_json, name, os.getcwd(), target, json.dumps(plain), **flags
+        )
+        return _read_table(target, columns)
 
 
 def scenes() -> Dict[str, str]:

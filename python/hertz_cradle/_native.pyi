@@ -60,5 +60,23 @@ def optimize(
 ) -> Dict[str, Any]:
     """Run an optimisation into ``out``; a summary with ``columns`` and ``best_scene``."""
 
+def evaluate(
+    path: Optional[str],
+    text: Optional[str],
+    json: bool,
+    name: str,
+    base_dir: str,
+    out: str,
+    designs: str,
+    *,
+    backend: str = "auto",
+    precision: Optional[str] = None,
+    tolerance: Optional[float] = None,
+    method: Optional[str] = None,
+    model: Optional[str] = None,
+    threads: Optional[int] = None,
+) -> List[Tuple[str, str]]:
+    """Run ``designs`` (JSON: lists of the variables' values) as one batch into ``out``; the table's columns."""
+
 def scenes() -> List[Tuple[str, str]]:
     """The built-in scenes: (name, summary)."""

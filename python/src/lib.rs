@@ -341,6 +341,52 @@ fn optimize(
     model: Option<&str>,
     threads: Option<i64>,
 ) -> PyResult<Py<PyDict>> {
+    let req = problem_request(
+        (path, text, json, name, base_dir),
+        out,
+        best,
+        (backend, precision, tolerance, method, model, threads),
+    )?;
+    let columns = problem_columns(&req);
+    let summary = py
+        .detach(|| {
+            std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| req.run(None, &mut |_| {})))
+        })
+        .map_err(|_| PyRuntimeError::new_err("the optimisation panicked"))?
+        .map_err(to_py)?;
+    let d = PyDict::new(py);
+    d.set_item("columns", columns)?;
+    d.set_item("evaluations", summary.evaluations)?;
+    d.set_item("wall_s", summary.wall_s)?;
+    d.set_item("engine_s", summary.engine_s)?;
+    d.set_item("backend", summary.backend)?;
+    d.set_item("best_objective", summary.best.as_ref().map(|b| b.objective))?;
+    d.set_item(
+        "best_generation",
+        summary.best.as_ref().map(|b| b.generation),
+    )?;
+    d.set_item("best_candidate", summary.best.as_ref().map(|b| b.candidate))?;
+    d.set_item("best_scene", summary.best_toml)?;
+    Ok(d.unbind())
+}
+
+/// A problem (its path or its text: TOML, or JSON when `json`, named
+/// `name`, relative files found from `base_dir`) checked with the flags,
+/// its table going to `out`.
+#[allow(clippy::type_complexity)]
+fn problem_request(
+    (path, text, json, name, base_dir): (Option<String>, Option<String>, bool, &str, &str),
+    out: &str,
+    best: Option<String>,
+    (backend, precision, tolerance, method, model, threads): (
+        &str,
+        Option<&str>,
+        Option<f64>,
+        Option<&str>,
+        Option<&str>,
+        Option<i64>,
+    ),
+) -> PyResult<hertz_cradle::optimize::request::OptimizeRequest> {
     use hertz_cradle::optimize::request::{OptimizeRequest, OptimizeSettings};
     use hertz_cradle::optimize::Problem;
     let input = |e: hertz_cradle::InputError| to_py(e.into());
@@ -366,40 +412,81 @@ fn optimize(
         solver: solver(precision, tolerance, method, model)?,
         resume: false,
     };
-    let req = OptimizeRequest::new(
+    OptimizeRequest::new(
         problem,
         std::path::Path::new(out),
         best.as_deref().map(std::path::Path::new),
         &settings,
     )
-    .map_err(input)?;
-    let columns: Vec<(String, &str)> = req
-        .problem
+    .map_err(input)
+}
+
+/// The problem's table columns: (name, type) pairs.
+fn problem_columns(
+    req: &hertz_cradle::optimize::request::OptimizeRequest,
+) -> Vec<(String, &'static str)> {
+    req.problem
         .header()
         .into_iter()
         .zip(req.problem.types())
         .map(|(n, t)| (n, type_name(t)))
-        .collect();
-    let summary = py
-        .detach(|| {
-            std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| req.run(None, &mut |_| {})))
-        })
-        .map_err(|_| PyRuntimeError::new_err("the optimisation panicked"))?
-        .map_err(to_py)?;
-    let d = PyDict::new(py);
-    d.set_item("columns", columns)?;
-    d.set_item("evaluations", summary.evaluations)?;
-    d.set_item("wall_s", summary.wall_s)?;
-    d.set_item("engine_s", summary.engine_s)?;
-    d.set_item("backend", summary.backend)?;
-    d.set_item("best_objective", summary.best.as_ref().map(|b| b.objective))?;
-    d.set_item(
-        "best_generation",
-        summary.best.as_ref().map(|b| b.generation),
+        .collect()
+}
+
+/// Ask/tell: `designs` (JSON: a list of designs, each a list of the
+/// variables' values, numbers or strings) run as one batch of the problem
+/// (as [`optimize`] takes it); their rows written to `out`. Runs off the
+/// GIL; returns the table's `columns`.
+#[pyfunction]
+#[pyo3(signature = (path, text, json, name, base_dir, out, designs, *, backend="auto",
+    precision=None, tolerance=None, method=None, model=None, threads=None))]
+#[allow(clippy::too_many_arguments)]
+fn evaluate(
+    py: Python<'_>,
+    path: Option<String>,
+    text: Option<String>,
+    json: bool,
+    name: &str,
+    base_dir: &str,
+    out: &str,
+    designs: &str,
+    backend: &str,
+    precision: Option<&str>,
+    tolerance: Option<f64>,
+    method: Option<&str>,
+    model: Option<&str>,
+    threads: Option<i64>,
+) -> PyResult<Vec<(String, &'static str)>> {
+    use hertz_cradle::sweep::Value;
+    let req = problem_request(
+        (path, text, json, name, base_dir),
+        out,
+        None,
+        (backend, precision, tolerance, method, model, threads),
     )?;
-    d.set_item("best_candidate", summary.best.as_ref().map(|b| b.candidate))?;
-    d.set_item("best_scene", summary.best_toml)?;
-    Ok(d.unbind())
+    let parsed: Vec<Vec<serde_json::Value>> = serde_json::from_str(designs)
+        .map_err(|e| PyValueError::new_err(format!("designs: {e}")))?;
+    let mut values = Vec::with_capacity(parsed.len());
+    for (k, d) in parsed.iter().enumerate() {
+        let row: PyResult<Vec<Value>> = d
+            .iter()
+            .map(|x| match x {
+                serde_json::Value::Number(n) => n
+                    .as_f64()
+                    .map(Value::Num)
+                    .ok_or_else(|| PyValueError::new_err(format!("design {k}: {n}"))),
+                serde_json::Value::String(t) => Ok(Value::Text(t.clone())),
+                other => Err(PyValueError::new_err(format!(
+                    "design {k}: {other} is neither a number nor a string"
+                ))),
+            })
+            .collect();
+        values.push(row?);
+    }
+    py.detach(|| std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| req.evaluate(&values))))
+        .map_err(|_| PyRuntimeError::new_err("the evaluation panicked"))?
+        .map_err(to_py)?;
+    Ok(problem_columns(&req))
 }
 
 /// The built-in scenes: (name, summary) pairs.
@@ -414,6 +501,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(sweep, m)?)?;
     m.add_function(wrap_pyfunction!(run, m)?)?;
     m.add_function(wrap_pyfunction!(optimize, m)?)?;
+    m.add_function(wrap_pyfunction!(evaluate, m)?)?;
     m.add_function(wrap_pyfunction!(scenes, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())

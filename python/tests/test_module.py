@@ -335,3 +335,40 @@ def test_optimize_writes_the_clis_bytes_and_its_best_scene_runs_again(tmp_path):
     assert hc.run(best)["v_2"] == top
     with pytest.raises(ValueError, match="objective"):
         hc.optimize({**problem, "objective": {"maximize": "v_9"}}, backend="cpu")
+
+
+def test_evaluate_runs_an_outside_optimisers_designs_as_optimize_would():
+    """Ask/tell: designs asked by an optimiser of the user's own (here
+    pycma's shape: a list of vectors, or dicts) run as one batch; each row is
+    the row optimize writes for that design."""
+    problem = {
+        "scene": {"balls": 3, "velocity": [1.0, 0, 0]},
+        "variable": [{"name": "mass[1..2]", "min": 0.01, "max": 1.0, "scale": "log"}],
+        "objective": {"maximize": "v_2"},
+        "constraint": [{"expr": "total_mass <= 0.5"}],
+    }
+    designs = [[0.05, 0.05], [0.3, 0.02], [0.4, 0.4]]
+    t = hc.evaluate(problem, designs, backend="cpu")
+    assert t.num_rows == 3
+    rows = t.to_pylist()
+    assert [r["mass[1]"] for r in rows] == [0.05, 0.3, 0.4]
+    assert [r["feasible"] for r in rows] == ["true", "true", "false"]
+    assert all(r["status"] == "ok" and r["v_2"] > 0 for r in rows)
+    # Dicts by variable name give the same rows; an unknown name or a value
+    # outside its range is refused, naming it.
+    by_name = hc.evaluate(problem, [{"mass[1]": a, "mass[2]": b} for a, b in designs], backend="cpu")
+    assert by_name.equals(t)
+    with pytest.raises(ValueError, match="unknown: mass.3."):
+        hc.evaluate(problem, [{"mass[1]": 0.1, "mass[2]": 0.1, "mass[3]": 0.1}], backend="cpu")
+    with pytest.raises(ValueError, match=r"design 1: mass\[2\] = 2: allowed 0.01 to 1"):
+        hc.evaluate(problem, [[0.1, 0.1], [0.1, 2.0]], backend="cpu")
+    # An optimisation's designs evaluated again: the same rows, cell for cell.
+    table, _ = hc.optimize(
+        {**problem, "optimizer": {"population": 4, "evaluations": 8, "seed": 3}}, backend="cpu"
+    )
+    opt = table.to_pylist()
+    again = hc.evaluate(problem, [[r["mass[1]"], r["mass[2]"]] for r in opt], backend="cpu")
+    for a, b in zip(opt, again.to_pylist()):
+        for c in a:
+            if c not in ("generation", "candidate"):
+                assert a[c] == b[c] or (a[c] != a[c] and b[c] != b[c]), (c, a[c], b[c])

@@ -609,11 +609,77 @@ impl Problem {
 
     /// The scene at coordinates `u` (one per variable, in [0, 1]).
     pub fn spec_at(&self, u: &[f64]) -> SceneSpec {
+        self.spec_of(&self.values_at(u))
+    }
+
+    /// Each variable's value at coordinates `u`.
+    pub fn values_at(&self, u: &[f64]) -> Vec<Value> {
+        self.variables
+            .iter()
+            .zip(u)
+            .map(|(v, &x)| v.value(x))
+            .collect()
+    }
+
+    /// The scene with each variable at its value in `values`.
+    pub fn spec_of(&self, values: &[Value]) -> SceneSpec {
         let mut s = self.scene.clone();
-        for (v, &x) in self.variables.iter().zip(u) {
-            axis::apply(&mut s, &self.base, &v.param, &v.value(x));
+        for (v, x) in self.variables.iter().zip(values) {
+            axis::apply(&mut s, &self.base, &v.param, x);
         }
         s
+    }
+
+    /// `values` checked as a design of this problem: one per variable, each
+    /// within its range (a whole number for an integer key) or one of its
+    /// choices.
+    pub fn check_design(&self, k: usize, values: &[Value]) -> Result<(), InputError> {
+        let bad = |what: String| InputError::Data {
+            path: PathBuf::from(&self.origin),
+            what: format!("design {k}: {what}"),
+        };
+        if values.len() != self.variables.len() {
+            return Err(bad(format!(
+                "{} values for the problem's {} variables ({})",
+                values.len(),
+                self.variables.len(),
+                self.header()[3..3 + self.variables.len()].join(", ")
+            )));
+        }
+        for (v, x) in self.variables.iter().zip(values) {
+            let whole = match x {
+                Value::Num(n) => v.param.kind != Kind::Integer || n.fract() == 0.0,
+                Value::Text(_) => true,
+            };
+            if v.coordinate(x).is_none() || !whole {
+                let allowed = match &v.domain {
+                    Domain::Range { min, max, .. } => format!(
+                        "{}{min} to {max}",
+                        if v.param.kind == Kind::Integer {
+                            "a whole number from "
+                        } else {
+                            ""
+                        }
+                    ),
+                    Domain::Choices(c) => format!(
+                        "one of {}",
+                        c.iter()
+                            .map(|c| match c {
+                                Value::Num(n) => n.to_string(),
+                                Value::Text(t) => format!("\"{t}\""),
+                            })
+                            .collect::<Vec<_>>()
+                            .join(", ")
+                    ),
+                };
+                let shown = match x {
+                    Value::Num(n) => n.to_string(),
+                    Value::Text(t) => format!("\"{t}\""),
+                };
+                return Err(bad(format!("{} = {shown}: allowed {allowed}", v.name)));
+            }
+        }
+        Ok(())
     }
 }
 
@@ -756,6 +822,87 @@ impl Judge<'_> {
     }
 }
 
+/// Candidates `values` (each variable's value, per candidate; their
+/// scenes `specs`) run as one batch on `backend`: their rows (generation
+/// `g`, candidate k, `feasible` not yet judged: null), and the engine's
+/// seconds. A candidate whose values make no valid scene of the model is
+/// `invalid`.
+fn candidate_rows(
+    p: &Problem,
+    backend: &dyn Backend,
+    o: &Overrides,
+    g: u64,
+    values: &[Vec<Value>],
+    specs: &[SceneSpec],
+) -> anyhow::Result<(Vec<Vec<Cell>>, f64)> {
+    let scenes: Vec<Option<Scene>> = specs
+        .iter()
+        .map(|s| {
+            s.validate()
+                .ok()
+                .filter(|sc| crate::model::kind(sc) == crate::model::kind(&p.base))
+        })
+        .collect();
+    let scene_at = |k: usize| {
+        scenes[k].clone().ok_or_else(|| InputError::Data {
+            path: PathBuf::from(&p.origin),
+            what: format!("candidate {k}: no valid scene"),
+        })
+    };
+    let te = Instant::now();
+    let mut built = te;
+    let outcomes = p.model.run(
+        backend,
+        values.len(),
+        &scene_at,
+        o,
+        p.model.takes_error_estimate(),
+        &mut built,
+    )?;
+    let engine_s = te.elapsed().as_secs_f64();
+    let rows = values
+        .iter()
+        .enumerate()
+        .map(|(k, vals)| {
+            let mut row: Vec<Cell> = vec![Cell::Int(g), Cell::Int(k as u64), Cell::Null];
+            row.extend(vals.iter().map(|v| match v {
+                Value::Num(x) => Cell::Num(*x),
+                Value::Text(t) => Cell::Text(t.clone()),
+            }));
+            row.push(Cell::Num(
+                scenes[k].as_ref().map_or(f64::NAN, |s| s.mass.iter().sum()),
+            ));
+            outcomes.emit(k, &mut |f| row.push(Cell::from(f)));
+            row
+        })
+        .collect();
+    Ok((rows, engine_s))
+}
+
+/// The rows of `designs` (each variable's value, in the problem's order),
+/// run as one batch on `backend` with `feasible` judged: what `cradle
+/// optimize` writes for them (generation 0, candidate k). The engine's
+/// batched evaluation for an optimiser of the user's own (ask/tell: pycma,
+/// Optuna, nevergrad ask for designs; these rows tell them the objective).
+/// A value outside its variable's domain is refused, naming it.
+pub fn evaluate(
+    p: &Problem,
+    backend: &dyn Backend,
+    o: &Overrides,
+    designs: &[Vec<Value>],
+) -> anyhow::Result<Vec<Vec<Cell>>> {
+    for (k, d) in designs.iter().enumerate() {
+        p.check_design(k, d)?;
+    }
+    let specs: Vec<SceneSpec> = designs.iter().map(|v| p.spec_of(v)).collect();
+    let (mut rows, _) = candidate_rows(p, backend, o, 0, designs, &specs)?;
+    let judge = Judge::new(p);
+    for row in &mut rows {
+        row[2] = Cell::Text(judge.verdict(row).0.to_string());
+    }
+    Ok(rows)
+}
+
 /// Run the problem on `backend`. `earlier`: the rows of the generations a
 /// previous run of the same problem finished (`--resume`), replayed, not
 /// run again; `sink` is given each new generation's rows once they are
@@ -804,55 +951,15 @@ pub fn run(
             .iter()
             .map(|x| x.iter().map(|&v| mirror(v)).collect())
             .collect();
-        let specs: Vec<SceneSpec> = us.iter().map(|u| p.spec_at(u)).collect();
-        let mut new: Vec<Vec<Cell>> =
-            if g < replayed {
-                earlier.by_ref().take(lambda).collect()
-            } else {
-                // A candidate whose values make no valid scene of the model: `invalid`.
-                let scenes: Vec<Option<Scene>> = specs
-                    .iter()
-                    .map(|s| {
-                        s.validate()
-                            .ok()
-                            .filter(|sc| crate::model::kind(sc) == crate::model::kind(&p.base))
-                    })
-                    .collect();
-                let scene_at = |k: usize| {
-                    scenes[k].clone().ok_or_else(|| InputError::Data {
-                        path: PathBuf::from(&p.origin),
-                        what: format!("candidate {k}: no valid scene"),
-                    })
-                };
-                let te = Instant::now();
-                let mut built = te;
-                let outcomes = p.model.run(
-                    backend,
-                    lambda,
-                    &scene_at,
-                    o,
-                    p.model.takes_error_estimate(),
-                    &mut built,
-                )?;
-                engine_s += te.elapsed().as_secs_f64();
-                (0..lambda)
-                    .map(|k| {
-                        let mut row: Vec<Cell> =
-                            vec![Cell::Int(g), Cell::Int(k as u64), Cell::Null];
-                        row.extend(p.variables.iter().zip(&us[k]).map(
-                            |(v, &u)| match v.value(u) {
-                                Value::Num(x) => Cell::Num(x),
-                                Value::Text(t) => Cell::Text(t),
-                            },
-                        ));
-                        row.push(Cell::Num(
-                            scenes[k].as_ref().map_or(f64::NAN, |s| s.mass.iter().sum()),
-                        ));
-                        outcomes.emit(k, &mut |f| row.push(Cell::from(f)));
-                        row
-                    })
-                    .collect()
-            };
+        let values: Vec<Vec<Value>> = us.iter().map(|u| p.values_at(u)).collect();
+        let specs: Vec<SceneSpec> = values.iter().map(|v| p.spec_of(v)).collect();
+        let mut new: Vec<Vec<Cell>> = if g < replayed {
+            earlier.by_ref().take(lambda).collect()
+        } else {
+            let (rows, s) = candidate_rows(p, backend, o, g, &values, &specs)?;
+            engine_s += s;
+            rows
+        };
         let mut keys = Vec::with_capacity(lambda);
         for (k, row) in new.iter_mut().enumerate() {
             let (feasible, key, objective) = judge.verdict(row);

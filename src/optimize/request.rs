@@ -269,4 +269,31 @@ impl OptimizeRequest {
             best_toml,
         })
     }
+
+    /// Ask/tell: run `designs` (each variable's value, in the problem's
+    /// order) as one batch and write their rows to the output (what `run`
+    /// writes for a generation: [`super::evaluate`]); the rows back.
+    pub fn evaluate(&self, designs: &[Vec<crate::sweep::Value>]) -> Result<Vec<Vec<Cell>>, Error> {
+        let p = &self.problem;
+        for (k, d) in designs.iter().enumerate() {
+            p.check_design(k, d)?;
+        }
+        let backend = backend::choose(self.backend, self.solver.precision).map_err(Error::from)?;
+        backend
+            .prepare(&p.model.needs(&p.base, &p.varied(), &self.solver))
+            .map_err(Error::from)?;
+        let (b, o): (&dyn crate::backend::Backend, &Overrides) = (&*backend, &self.overrides);
+        let work = || super::evaluate(p, b, o, designs);
+        let rows = match self.threads {
+            Some(n) => rayon::ThreadPoolBuilder::new()
+                .num_threads(n)
+                .build()
+                .map_err(|e| Error::Runtime(e.into()))?
+                .install(work),
+            None => work(),
+        }
+        .map_err(Error::from)?;
+        write_alone(&self.out, |w| p.write_table(&rows, self.format, w)).map_err(Error::from)?;
+        Ok(rows)
+    }
 }
