@@ -205,6 +205,8 @@ fn sweep(args: hertz_cradle::cli::SweepArgs) -> anyhow::Result<()> {
     // against the file) before any work or any GPU start-up.
     let req = args.request()?;
     let bar = hertz_cradle::progress::Bar::stderr(true);
+    let model = req.sweep.model.clone();
+    bar.watch(move || model.work_done());
     let cancel = stop_on_signal();
     let total = std::sync::Arc::new(std::sync::atomic::AtomicU64::new(0));
     let on_progress = {

@@ -37,6 +37,40 @@ impl PartialEq for Stop {
     }
 }
 
+/// A running count of the bead-steps runs have taken, shared with whoever
+/// shows progress (a sweep of long chains moves its bar as the chains
+/// step, not only when a batch ends): a granular chain's run adds to it
+/// every 2^16 bead-steps or so and at its end, twins and reruns included.
+/// Not part of a plan's identity.
+#[derive(Clone, Debug, Default)]
+pub struct Tally(Option<std::sync::Arc<std::sync::atomic::AtomicU64>>);
+
+impl PartialEq for Tally {
+    fn eq(&self, _: &Tally) -> bool {
+        true
+    }
+}
+
+impl Tally {
+    /// A count from 0 that every clone adds to.
+    pub fn new() -> Tally {
+        Tally(Some(Default::default()))
+    }
+
+    pub fn add(&self, n: u64) {
+        if let Some(c) = &self.0 {
+            c.fetch_add(n, std::sync::atomic::Ordering::Relaxed);
+        }
+    }
+
+    /// The count so far (`None`: not counting).
+    pub fn get(&self) -> Option<u64> {
+        self.0
+            .as_ref()
+            .map(|c| c.load(std::sync::atomic::Ordering::Relaxed))
+    }
+}
+
 impl Stop {
     /// A stop that [`Stop::request`] on any clone triggers.
     pub fn new() -> Stop {

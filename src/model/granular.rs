@@ -37,6 +37,8 @@ pub const HISTORY_ROWS: usize = 400;
 pub struct Granular {
     cols: Arc<Columns>,
     most_beads: usize,
+    /// The bead-steps of this sweep's runs ([`Model::work_done`]).
+    tally: crate::engine::Tally,
 }
 
 impl Granular {
@@ -47,6 +49,7 @@ impl Granular {
         Granular {
             cols: Arc::new(Columns::for_chains(probes, most_beads, kinds)),
             most_beads,
+            tally: crate::engine::Tally::new(),
         }
     }
 }
@@ -106,6 +109,13 @@ impl Model for Granular {
         false
     }
 
+    /// The bead-steps taken so far by the chains this model ran on the
+    /// CPU engine, twins and reruns included (the GPU kernel's are not
+    /// counted).
+    fn work_done(&self) -> Option<u64> {
+        self.tally.get()
+    }
+
     /// At most [`BATCH_BEADS`] beads of the longest chain's length.
     fn batch_size(&self, cap: u64) -> u64 {
         (BATCH_BEADS / self.most_beads.max(1) as u64).clamp(1, cap.max(1))
@@ -133,7 +143,12 @@ impl Model for Granular {
         _error_estimate: bool,
         _built: &mut Instant,
     ) -> anyhow::Result<Box<dyn Outcomes>> {
-        let v = run_chains_controlled(backend, n, &|k| job(scene(k), o))?;
+        let v = run_chains_controlled(backend, n, &|k| {
+            Ok(job(scene(k), o)?.map(|mut j| {
+                j.plan.tally = self.tally.clone();
+                j
+            }))
+        })?;
         Ok(Box::new(ChainOutcomes {
             v,
             cols: self.cols.clone(),

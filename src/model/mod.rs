@@ -94,6 +94,13 @@ pub trait Model: std::fmt::Debug + Send + Sync {
     /// Scene `id` run again on the CPU for a closer look (the explorer's
     /// scene panel): its outcome's columns and what the model can show of
     /// its motion, as JSON.
+    /// Bead-steps (or the model's unit of work) its runs have taken so far,
+    /// as they step: `None` when the model does not count them (a sweep's
+    /// progress then moves with its rows alone).
+    fn work_done(&self) -> Option<u64> {
+        None
+    }
+
     /// A long run ends early, with an error, when `stop` is requested.
     fn look(
         &self,

@@ -1157,3 +1157,41 @@ fn a_stopped_chain_ends_at_its_next_check_and_its_look_fails() {
     assert!(e.contains("scene 7 was stopped"), "{e}");
     assert!(look(&Stop::default()).is_ok());
 }
+
+/// A run counts its bead-steps into its plan's tally (what a chain sweep's
+/// progress bar shows as it steps): exactly steps × beads for one run, and
+/// for a model's batch under the error control at least the reported runs'
+/// (twins and reruns count too).
+#[test]
+fn a_run_counts_its_bead_steps_and_a_models_batch_all_of_its_runs() {
+    use hertz_cradle::backend::cpu::Cpu;
+    use hertz_cradle::engine::Tally;
+    use hertz_cradle::model::{granular::Granular, Model};
+    let text = struck(300, 0.1, "");
+    let (s, b) = chain(&text);
+    let solver = Solver::resolve(&s, &Overrides::default()).unwrap();
+    let mut plan = granular::plan(&b, &solver, None);
+    plan.tally = Tally::new();
+    let o = granular::run(&b, &plan, &mut NoRows);
+    assert_eq!(plan.tally.get(), Some(o.steps * 300));
+    assert!(o.steps * 300 > 1 << 16, "several chunks: {}", o.steps);
+    let model = Granular::new(vec![75, 225], 300, [false; 3]);
+    assert_eq!(model.work_done(), Some(0));
+    let (s2, b2) = chain(&struck(300, 0.2, ""));
+    let o2 = granular::run(&b2, &granular::plan(&b2, &solver, None), &mut NoRows);
+    let scenes = [s.clone(), s2];
+    model
+        .run(
+            &Cpu,
+            2,
+            &|k| Ok(scenes[k].clone()),
+            &Overrides::default(),
+            false,
+            &mut std::time::Instant::now(),
+        )
+        .unwrap();
+    // Each chain's first run at least, and its twin on top.
+    let first_runs = (o.steps + o2.steps) * 300;
+    let done = model.work_done().unwrap();
+    assert!(done > first_runs, "{done} vs {first_runs}");
+}

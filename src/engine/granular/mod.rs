@@ -570,6 +570,8 @@ pub struct Plan {
     /// Ends the run early when requested (its outcome then not the
     /// scene's: [`crate::engine::Stop`]).
     pub stop: crate::engine::Stop,
+    /// Counts the bead-steps this run takes ([`crate::engine::Tally`]).
+    pub tally: crate::engine::Tally,
 }
 
 impl Plan {
@@ -681,6 +683,7 @@ pub fn plan(beads: &Beads, solver: &Solver, every: Option<f64>) -> Plan {
         precision: solver.precision,
         tolerance,
         stop: crate::engine::Stop::default(),
+        tally: crate::engine::Tally::default(),
     };
     p.with_step(beads, h, false)
 }
