@@ -315,16 +315,23 @@ impl SweepRequest {
             s.backend = format!("{} ({})", backend.name(), backend.adapter());
             Ok(s)
         };
-        let s = match self.threads {
-            Some(t) => rayon::ThreadPoolBuilder::new()
-                .num_threads(t)
-                .build()
-                .map_err(anyhow::Error::from)?
-                .install(go)?,
-            None => go()?,
-        };
-        Ok(s)
+        Ok(pooled(self.threads, go)??)
     }
+}
+
+/// Run `work` on a pool of `threads` worker threads of its own (`--threads`),
+/// or on the global pool (every core).
+pub fn pooled<T: Send>(
+    threads: Option<usize>,
+    work: impl FnOnce() -> T + Send,
+) -> anyhow::Result<T> {
+    Ok(match threads {
+        Some(n) => rayon::ThreadPoolBuilder::new()
+            .num_threads(n)
+            .build()?
+            .install(work),
+        None => work(),
+    })
 }
 
 /// One scene's settings as given (`cradle run`'s flags), before checking.

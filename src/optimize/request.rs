@@ -236,15 +236,9 @@ impl OptimizeRequest {
         };
         let cancel = cancel.as_deref();
         let work = move || super::run(p, b, o, earlier, &mut sink, cancel, report);
-        let fin: Finished = match self.threads {
-            Some(n) => rayon::ThreadPoolBuilder::new()
-                .num_threads(n)
-                .build()
-                .map_err(|e| Error::Runtime(e.into()))?
-                .install(work),
-            None => work(),
-        }
-        .map_err(Error::from)?;
+        let fin: Finished = crate::request::pooled(self.threads, work)
+            .map_err(Error::Runtime)?
+            .map_err(Error::from)?;
         write_with(&self.out, |w| p.write_table(&fin.rows, self.format, w)).map_err(Error::from)?;
         let _ = std::fs::remove_file(&partial);
         let best_toml = fin
@@ -284,15 +278,9 @@ impl OptimizeRequest {
             .map_err(Error::from)?;
         let (b, o): (&dyn crate::backend::Backend, &Overrides) = (&*backend, &self.overrides);
         let work = || super::evaluate(p, b, o, designs);
-        let rows = match self.threads {
-            Some(n) => rayon::ThreadPoolBuilder::new()
-                .num_threads(n)
-                .build()
-                .map_err(|e| Error::Runtime(e.into()))?
-                .install(work),
-            None => work(),
-        }
-        .map_err(Error::from)?;
+        let rows = crate::request::pooled(self.threads, work)
+            .map_err(Error::Runtime)?
+            .map_err(Error::from)?;
         write_alone(&self.out, |w| p.write_table(&rows, self.format, w)).map_err(Error::from)?;
         Ok(rows)
     }
