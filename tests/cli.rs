@@ -1109,6 +1109,23 @@ fn optimize_is_deterministic_and_its_best_reproduces() {
     let (one, best) = out("one.csv", "1");
     let (two, _) = out("two.csv", "2");
     assert_eq!(one, two, "thread count changed the bytes");
+    // The summary names the pool that ran it (it said "2 threads" for 1).
+    let three = dir.path().join("three.csv").display().to_string();
+    let o = cradle()
+        .args([
+            "optimize",
+            &problem,
+            "--out",
+            &three,
+            "--backend",
+            "cpu",
+            "--threads",
+            "1",
+        ])
+        .output()
+        .unwrap();
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success() && e.contains("(rayon, 1 thread)"), "{e}");
     let mut rows = csv::Reader::from_reader(one.as_bytes());
     let header = rows.headers().unwrap().clone();
     let col = |name: &str| header.iter().position(|h| h == name).unwrap();

@@ -235,8 +235,12 @@ impl OptimizeRequest {
             Ok(())
         };
         let cancel = cancel.as_deref();
-        let work = move || super::run(p, b, o, earlier, &mut sink, cancel, report);
-        let fin: Finished = crate::request::pooled(self.threads, work)
+        // The label inside the pool that ran it: `--threads 1` says 1 thread.
+        let work = move || {
+            let label = format!("{} ({})", b.name(), b.adapter());
+            super::run(p, b, o, earlier, &mut sink, cancel, report).map(|f| (f, label))
+        };
+        let (fin, label): (Finished, String) = crate::request::pooled(self.threads, work)
             .map_err(Error::Runtime)?
             .map_err(Error::from)?;
         write_with(&self.out, |w| p.write_table(&fin.rows, self.format, w)).map_err(Error::from)?;
@@ -258,7 +262,7 @@ impl OptimizeRequest {
             evaluations: fin.evaluations,
             wall_s: fin.wall_s,
             engine_s: fin.engine_s,
-            backend: format!("{} ({})", backend.name(), backend.adapter()),
+            backend: label,
             best: fin.best,
             best_toml,
         })
