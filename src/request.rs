@@ -581,7 +581,7 @@ impl RunRequest {
         // The trace is the reported run's: that run again, rows written.
         // Written beside the path and published whole (a kill or a full
         // disk leaves the previous trace, never a cut-off one).
-        Ok(crate::output::publish::write_alone(path, |w| {
+        let traced = crate::output::publish::write_alone(path, |w| {
             crate::output::trace::in_format(path, w, |w| {
                 let mut tw =
                     crate::output::trace::ChainTraceWriter::new(w, beads, self.trace_beads.clone())
@@ -591,7 +591,24 @@ impl RunRequest {
                     .with_context(|| format!("writing {}", path.display()))?;
                 Ok(traced)
             })
-        })?)
+        })?;
+        self.trace_sidecar(path)?;
+        Ok(traced)
+    }
+
+    /// Beside a trace just written, its sidecar (`TRACE.json`): the scene's
+    /// name and description, which `cradle plot --trace` takes for its
+    /// title.
+    fn trace_sidecar(&self, path: &Path) -> anyhow::Result<()> {
+        let json = serde_json::json!({
+            "trace_of": self.name,
+            "description": Scene::description_of(&self.name),
+            "version": env!("CARGO_PKG_VERSION"),
+        });
+        crate::output::publish::write_atomic(
+            &crate::output::sidecar::path(path),
+            format!("{json:#}\n").as_bytes(),
+        )
     }
 
     /// The trace's path and spacing, checked: the hertz model only, a
@@ -653,16 +670,20 @@ impl RunRequest {
         let (chain, solver) = (&self.chain, &self.solver);
         Ok(match &self.trace {
             None => simulate_chain(chain, solver, &mut Silent),
-            Some((path, every)) => crate::output::publish::write_alone(path, |w| {
-                crate::output::trace::in_format(path, w, |w| {
-                    let mut tw = crate::output::trace::TraceWriter::new(w, chain, *every)
-                        .with_context(|| format!("writing {}", path.display()))?;
-                    let o = simulate_chain(chain, solver, &mut tw);
-                    tw.finish()
-                        .with_context(|| format!("writing {}", path.display()))?;
-                    Ok(o)
-                })
-            })?,
+            Some((path, every)) => {
+                let o = crate::output::publish::write_alone(path, |w| {
+                    crate::output::trace::in_format(path, w, |w| {
+                        let mut tw = crate::output::trace::TraceWriter::new(w, chain, *every)
+                            .with_context(|| format!("writing {}", path.display()))?;
+                        let o = simulate_chain(chain, solver, &mut tw);
+                        tw.finish()
+                            .with_context(|| format!("writing {}", path.display()))?;
+                        Ok(o)
+                    })
+                })?;
+                self.trace_sidecar(path)?;
+                o
+            }
         })
     }
 

@@ -415,6 +415,22 @@ fn plots_are_valid_png_and_svg_with_clear_errors() {
     assert_eq!(&fs::read(&tpng).unwrap()[..4], b"\x89PNG");
     let e = bad_input(&["plot", "--trace", &csv, "--out", &tpng]);
     assert!(e.contains("not a trace"), "{e}");
+    // A trace's title is its scene's description (from the trace's sidecar).
+    let described = write(
+        &dir,
+        "described.toml",
+        "description = \"three balls, one struck\"\nballs = 3\nvelocity = [1.0, 0, 0]\n",
+    );
+    let dt = dir.path().join("d.csv").display().to_string();
+    success(&["run", &described, "--trace", &dt]);
+    let side: serde_json::Value =
+        serde_json::from_str(&fs::read_to_string(format!("{dt}.json")).unwrap()).unwrap();
+    assert_eq!(side["description"], "three balls, one struck");
+    let dsvg = dir.path().join("d.svg").display().to_string();
+    success(&["plot", "--trace", &dt, "--out", &dsvg]);
+    assert!(fs::read_to_string(&dsvg)
+        .unwrap()
+        .contains("three balls, one struck: 3 balls"));
     // A figure for a paper: a size in inches at a resolution (the PNG's
     // pixels), a vector PDF with the font embedded; bad sizes refused.
     let fig = dir.path().join("fig.png").display().to_string();

@@ -1063,11 +1063,17 @@ fn trace_and_plot_keep_the_previous_file_when_the_disk_fills() {
     ]);
     assert_eq!(fs::read(&trace).unwrap(), t0, "the trace was replaced");
     assert_eq!(fs::read(&png).unwrap(), p0, "the plot was replaced");
-    let left: Vec<_> = fs::read_dir(d)
+    let mut left: Vec<_> = fs::read_dir(d)
         .unwrap()
-        .map(|e| e.unwrap().file_name())
+        .map(|e| e.unwrap().file_name().into_string().unwrap())
         .collect();
-    assert_eq!(left.len(), 2, "temporary files left: {left:?}");
+    left.sort();
+    // The trace, its sidecar (the first run's) and the plot: no temporary file.
+    assert_eq!(
+        left,
+        ["p.png", "t.csv", "t.csv.json"],
+        "temporary files left"
+    );
 }
 
 /// [`write_sweep`]'s 9 × 9 sweep, and the same with a `[refine]` of

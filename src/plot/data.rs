@@ -22,7 +22,20 @@ impl Table {
     pub fn read(path: &Path) -> Result<Table, InputError> {
         // A refined sweep's table is drawn as the full grid (`sweep::fill`),
         // a Parquet table read as the CSV's text.
-        let source = crate::sweep::fill::full_csv(path).map_err(|e| {
+        Self::read_from(path, crate::sweep::fill::full_csv(path))
+    }
+
+    /// A trace (CSV or Parquet) as it is: its sidecar is the trace's, not a
+    /// sweep's.
+    pub fn read_trace(path: &Path) -> Result<Table, InputError> {
+        Self::read_from(path, crate::sweep::fill::csv_of(path))
+    }
+
+    fn read_from(
+        path: &Path,
+        source: anyhow::Result<Box<dyn std::io::Read>>,
+    ) -> Result<Table, InputError> {
+        let source = source.map_err(|e| {
             let e = match e.downcast::<InputError>() {
                 Ok(input) => return input,
                 Err(e) => e,

@@ -41,7 +41,7 @@ fn bead_columns(header: &[String], prefix: &str) -> Vec<(usize, usize)> {
 pub fn plot(input: &Path, title: Option<&str>, fig: &super::Figure, out: &Path) -> Result<()> {
     fonts();
     super::Format::of(out)?;
-    let table = Table::read(input)?;
+    let table = Table::read_trace(input)?;
     let xs = bead_columns(&table.header, "x_");
     let vs = bead_columns(&table.header, "v_");
     let fs = bead_columns(&table.header, "f_");
@@ -71,7 +71,19 @@ pub fn plot(input: &Path, title: Option<&str>, fig: &super::Figure, out: &Path) 
         }
         .into());
     }
-    let name = input.file_stem().unwrap_or_default().to_string_lossy();
+    // The title: the scene's description from the trace's sidecar
+    // (`cradle run --trace` writes it), else the file's name.
+    let described = std::fs::read_to_string(crate::output::sidecar::path(input))
+        .ok()
+        .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok())
+        .and_then(|v| v["description"].as_str().map(str::to_string));
+    let name = described.unwrap_or_else(|| {
+        input
+            .file_stem()
+            .unwrap_or_default()
+            .to_string_lossy()
+            .into_owned()
+    });
     let column = |c: usize| table.numbers(c);
     if xs.len() > super::spacetime::LINES_UP_TO {
         // A long chain: every row, as images (no lines to thin).

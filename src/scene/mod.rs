@@ -294,6 +294,18 @@ impl Scene {
     }
 
     /// A file path, or else the name of a built-in scene.
+    /// The `description` of the scene [`Scene::load`] loads: a file's key,
+    /// a built-in's summary (`None` if it has none or cannot be read).
+    pub fn description_of(name_or_path: &str) -> Option<String> {
+        let path = Path::new(name_or_path);
+        if path.exists() {
+            let text = std::fs::read_to_string(path).ok()?;
+            let t: toml::Table = text.parse().ok()?;
+            return t.get("description")?.as_str().map(str::to_string);
+        }
+        builtin::find(name_or_path).map(|b| b.summary.to_string())
+    }
+
     pub fn load(name_or_path: &str) -> Result<Scene, InputError> {
         let path = Path::new(name_or_path);
         if path.exists() {
