@@ -297,39 +297,31 @@ def evaluate(
     columns, ``status``: a row that misses its tolerance says so).
     """
     path, text, is_json, name = _document(spec, "problem")
-    flags = dict(
-        backend=backend,
-        precision=precision,
-        tolerance=None if tolerance is None else float(tolerance),
-        method=method,
-        model=model,
-        threads=None if threads is None else int(threads),
-    )
+
+    def plain(v: Union[float, str]) -> Union[float, str]:
+        return v if isinstance(v, str) else float(v)  # numpy floats too
+
+    # Mappings stay mappings: the module puts them in the variables' order.
+    rows = [
+        {str(k): plain(v) for k, v in d.items()} if isinstance(d, Mapping) else [plain(v) for v in d]
+        for d in designs
+    ]
     with tempfile.TemporaryDirectory(prefix="hertz_cradle_") as tmp:
         target = os.path.join(tmp, "designs.parquet")
-        rows: List[List[Union[float, str]]] = []
-        if any(isinstance(d, Mapping) for d in designs):
-            # The variables' order: the table's columns after `feasible`.
-            columns = _native.evaluate(path, text, is_json, name, os.getcwd(), target, "[]", **flags)
-            names = [c for c, _ in columns][3:]
-            names = names[: names.index("total_mass")]
-            for k, d in enumerate(designs):
-                if isinstance(d, Mapping):
-                    unknown = sorted(set(d) - set(names))
-                    missing = [n for n in names if n not in d]
-                    if unknown or missing:
-                        raise ValueError(
-                            f"design {k}: the problem's variables are {', '.join(names)}"
-                            + (f"; unknown: {', '.join(unknown)}" if unknown else "")
-                            + (f"; missing: {', '.join(missing)}" if missing else "")
-                        )
-                    d = [d[n] for n in names]
-                rows.append(list(d))
-        else:
-            rows = [list(d) for d in designs]
-        plain = [[v if isinstance(v, str) else float(v) for v in r] for r in rows]
         columns = _native.evaluate(
-            path, text, is_json, name, os.getcwd(), target, json.dumps(plain), **flags
+            path,
+            text,
+            is_json,
+            name,
+            os.getcwd(),
+            target,
+            json.dumps(rows),
+            backend=backend,
+            precision=precision,
+            tolerance=None if tolerance is None else float(tolerance),
+            method=method,
+            model=model,
+            threads=None if threads is None else int(threads),
         )
         return _read_table(target, columns)
 

@@ -76,7 +76,7 @@ def evaluate(
     model: Optional[str] = None,
     threads: Optional[int] = None,
 ) -> List[Tuple[str, str]]:
-    """Run ``designs`` (JSON: lists of the variables' values) as one batch into ``out``; the table's columns."""
+    """Run ``designs`` (JSON: per design a mapping by variable name or the values in order) as one batch into ``out``; the table's columns."""
 
 def scenes() -> List[Tuple[str, str]]:
     """The built-in scenes: (name, summary)."""

@@ -433,8 +433,9 @@ fn problem_columns(
         .collect()
 }
 
-/// Ask/tell: `designs` (JSON: a list of designs, each a list of the
-/// variables' values, numbers or strings) run as one batch of the problem
+/// Ask/tell: `designs` (JSON: a list of designs, each a mapping from
+/// variable name to value or a list of the variables' values in the
+/// problem's order; numbers or strings) run as one batch of the problem
 /// (as [`optimize`] takes it); their rows written to `out`. Runs off the
 /// GIL; returns the table's `columns`.
 #[pyfunction]
@@ -464,12 +465,52 @@ fn evaluate(
         None,
         (backend, precision, tolerance, method, model, threads),
     )?;
-    let parsed: Vec<Vec<serde_json::Value>> = serde_json::from_str(designs)
+    let parsed: Vec<serde_json::Value> = serde_json::from_str(designs)
         .map_err(|e| PyValueError::new_err(format!("designs: {e}")))?;
+    let names: Vec<&str> = req
+        .problem
+        .variables
+        .iter()
+        .map(|v| v.name.as_str())
+        .collect();
     let mut values = Vec::with_capacity(parsed.len());
     for (k, d) in parsed.iter().enumerate() {
-        let row: PyResult<Vec<Value>> = d
-            .iter()
+        // A mapping by variable name, in the problem's order; or the values.
+        let cells: Vec<&serde_json::Value> = match d {
+            serde_json::Value::Object(m) => {
+                let unknown: Vec<&str> = m
+                    .keys()
+                    .map(String::as_str)
+                    .filter(|n| !names.contains(n))
+                    .collect();
+                let missing: Vec<&str> = names
+                    .iter()
+                    .copied()
+                    .filter(|n| !m.contains_key(*n))
+                    .collect();
+                if !unknown.is_empty() || !missing.is_empty() {
+                    let list = |what: &str, v: &[&str]| match v {
+                        [] => String::new(),
+                        v => format!("; {what}: {}", v.join(", ")),
+                    };
+                    return Err(PyValueError::new_err(format!(
+                        "design {k}: the problem's variables are {}{}{}",
+                        names.join(", "),
+                        list("unknown", &unknown),
+                        list("missing", &missing)
+                    )));
+                }
+                names.iter().map(|n| &m[*n]).collect()
+            }
+            serde_json::Value::Array(a) => a.iter().collect(),
+            other => {
+                return Err(PyValueError::new_err(format!(
+                    "design {k}: {other} is neither a mapping nor a list of values"
+                )))
+            }
+        };
+        let row: PyResult<Vec<Value>> = cells
+            .into_iter()
             .map(|x| match x {
                 serde_json::Value::Number(n) => n
                     .as_f64()
