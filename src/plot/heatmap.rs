@@ -205,9 +205,9 @@ impl Axis {
             (Some(c), _) if (v - v.round()).abs() < 1e-6 && v >= 0.0 => {
                 c.get(v.round() as usize).cloned().unwrap_or_default()
             }
-            (Some(_), _) => String::new(),
-            (None, Some(t)) => t.format(v),
-            (None, None) => number(if self.log { 10f64.powf(v) } else { v }),
+            (_, Some(t)) => t.format(v),
+            // A category's neighbourhood (numeric axes all have ticks).
+            _ => String::new(),
         }
     }
 

@@ -43,11 +43,35 @@ pub fn power_of_ten(e: i32) -> String {
 /// A value with its unit, SI-prefixed as an axis would print it: `si(1.2e-4,
 /// "m")` is "120 µm".
 pub fn si(v: f64, unit: &str) -> String {
-    let t = Ticks::linear("", Some(unit), vec![v]);
-    let u = t.label.trim_start_matches(" (").trim_end_matches(')');
-    let x = v * t.scale;
-    let s = format!("{x:.3}");
+    let (unit, to_unit) = grams(Some(unit));
+    let unit = unit.unwrap_or_default();
+    let x = (v * to_unit).abs();
+    let (p, u) = prefixed(exponent(x), unit)
+        .filter(|_| x > 0.0)
+        .unwrap_or((0, unit.to_string()));
+    let s = format!("{:.3}", v * to_unit * 10f64.powi(-p));
     format!("{} {u}", s.trim_end_matches('0').trim_end_matches('.'))
+}
+
+/// The power of ten of `top` (> 0): 2 for 150.
+fn exponent(top: f64) -> i32 {
+    (top.log10() + 1e-9).floor() as i32
+}
+
+/// For a largest value 10^`e` in `unit`, the SI prefix's power (a multiple
+/// of 3) and the prefixed unit ("µm"; grams of 10³ and up read kg), if the
+/// unit takes a prefix.
+fn prefixed(e: i32, unit: &str) -> Option<(i32, String)> {
+    if !prefixable(unit) {
+        return None;
+    }
+    let p = (e.div_euclid(3) * 3).clamp(-15, 12);
+    let prefix = PREFIXES.iter().find(|x| x.0 == p).map_or("", |x| x.1);
+    Some(if p == 3 && unit == "g" {
+        (p, "kg".to_string())
+    } else {
+        (p, format!("{prefix}{unit}"))
+    })
 }
 
 /// How one axis prints its ticks, and the label that says so.
@@ -109,28 +133,17 @@ impl Ticks {
         top: f64,
         step: f64,
     ) -> Ticks {
-        let e = if top > 0.0 {
-            (top.log10() + 1e-9).floor() as i32
-        } else {
-            0
-        };
-        let (label, p) = match unit {
-            Some(u) if prefixable(u) && top > 0.0 => {
-                let p = (e.div_euclid(3) * 3).clamp(-15, 12);
-                let prefix = PREFIXES.iter().find(|x| x.0 == p).map_or("", |x| x.1);
-                if p == 3 && u == "g" {
-                    (format!("{name} (kg)"), p)
-                } else {
-                    (format!("{name} ({prefix}{u})"), p)
-                }
-            }
+        let e = if top > 0.0 { exponent(top) } else { 0 };
+        let si = unit.filter(|_| top > 0.0).and_then(|u| prefixed(e, u));
+        let (label, p) = match (si, unit) {
+            (Some((p, u)), _) => (format!("{name} ({u})"), p),
             _ if top > 0.0 && !(-2..4).contains(&e) => {
                 let p = e.div_euclid(3) * 3;
                 let u = unit.map_or(String::new(), |u| format!(" {u}"));
                 (format!("{name} (×{}{u})", power_of_ten(p)), p)
             }
-            Some(u) => (format!("{name} ({u})"), 0),
-            None => (name, 0),
+            (None, Some(u)) => (format!("{name} ({u})"), 0),
+            (None, None) => (name, 0),
         };
         let s = 10f64.powi(-p);
         Ticks::fixed(at, label, to_unit * s, offset * s, step * s)
