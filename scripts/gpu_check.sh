@@ -21,6 +21,10 @@
 #             capped at STRESS_CAP seconds.
 #   struck    1,000 struck chains of 1,000 beads (issue #30's target).
 #   dimer     512 struck 100-bead dimer chains (8 radius ratios x 64 speeds).
+#             Both also on the chain kernel's global path
+#             (CRADLE_GPU_PROFILE=hardware,chain_local=false: every chain's
+#             velocities and forces in the storage buffer, as before the
+#             workgroup-memory path), same binary, same call.
 #   contract  issue #43's family (examples/chain_contract.rs: 20 chains at
 #             tolerances 1e-4, 1e-6, 1e-8, the 30-bead sensitive one left out:
 #             5.6 million steps at 1e-8) under the error control on the GPU
@@ -34,6 +38,12 @@
 # (go on on lavapipe: a dry run of the script itself, with a small CAP),
 # SHAPE_CAP (each extra grid1000 shape, default 25), SKIP (workloads left out,
 # e.g. "struck dimer": a call that measures a change of the cradle path only).
+# CHAIN_SHAPES (';'-separated profiles, e.g. "hardware,chain_wg=256"): the
+# struck and dimer workloads once more on the GPU under each.
+# SKIP takes workload prefixes or run names (e.g. "grid stress struck_cpu").
+# DEADLINE (seconds from the start, default 450): no run is started or
+# lets run past it less a minute kept for the table, so the table and the
+# logs come back whatever a run takes.
 # Every GPU run logs each batch's rounds (CRADLE_GPU_LOG=1) into its .log.
 set -uo pipefail
 here=$(cd "$(dirname "$0")" && pwd)
@@ -47,6 +57,13 @@ icd=/usr/local/nvidia/share/vulkan/icd.d/nvidia_icd.json
 [ -f "$icd" ] && export VK_DRIVER_FILES=$icd
 CAP=${CAP:-120}; GRID_CAP=${GRID_CAP:-45}; STRESS_CAP=${STRESS_CAP:-60}; SHAPE_CAP=${SHAPE_CAP:-25}
 SKIP=${SKIP:-}; export CRADLE_GPU_LOG=1
+DEADLINE=${DEADLINE:-450}; t0=$(date +%s)
+# capped CAP: CAP, or less so as to end a minute before the deadline (0: no time left).
+capped() {
+  local left=$((DEADLINE - 60 - ($(date +%s) - t0)))
+  [ "$left" -lt 5 ] && { echo 0; return; }
+  [ "$1" -lt "$left" ] && echo "$1" || echo "$left"
+}
 PROFILES=${PROFILES:-"hardware,host_ahead=0;hardware,scenes_per_worker=2;hardware,batch=32768"}
 table=$w/table.md
 log() { echo "$*" | tee -a "$w/check.log" "$out/check.log"; }
@@ -104,7 +121,11 @@ cp grid1000.toml stress.toml "$w/"
 run() {
   local name=$1 cap=$2 prof=$3; shift 3
   local s e rc
-  for k in $SKIP; do case $name in "$k"_*) return ;; esac; done
+  for k in $SKIP; do case $name in "$k" | "$k"_*) return ;; esac; done
+  cap=$(capped "$cap")
+  if [ "$cap" = 0 ]; then
+    echo "not run (deadline)" >"$w/$name.wall"; log "$name: not run (deadline)"; return
+  fi
   s=$(date +%s.%N)
   if [ -n "$prof" ]; then
     CRADLE_GPU_PROFILE=$prof timeout -k 5 "$cap" ./cradle "$@" >"$w/$name.log" 2>&1; rc=$?
@@ -132,19 +153,28 @@ run grid_gpu_f32      "$GRID_CAP" "" sweep $g --out $w/grid_gpu_f32.csv --backen
 run grid_cpu          "$GRID_CAP" "" sweep $g --out $w/grid_cpu.csv --backend cpu
 run grid_hard_sphere  "$GRID_CAP" "" sweep $g --out $w/grid_hard_sphere.csv --backend cpu --model hard-sphere
 run struck_gpu        "$CAP" "" sweep $w/struck.toml --out $w/struck_gpu.csv --backend gpu
+run struck_gpu_global "$CAP" "hardware,chain_local=false" sweep $w/struck.toml --out $w/struck_gpu_global.csv --backend gpu
 run struck_cpu        "$CAP" "" sweep $w/struck.toml --out $w/struck_cpu.csv --backend cpu
 run dimer_gpu         "$CAP" "" sweep $w/dimer.toml --out $w/dimer_gpu.csv --backend gpu
+run dimer_gpu_global  "$CAP" "hardware,chain_local=false" sweep $w/dimer.toml --out $w/dimer_gpu_global.csv --backend gpu
 run dimer_cpu         "$CAP" "" sweep $w/dimer.toml --out $w/dimer_cpu.csv --backend cpu
+i=0; IFS=';' read -ra cshapes <<<"${CHAIN_SHAPES:-}"
+for p in "${cshapes[@]}"; do
+  i=$((i + 1)); echo "$p" >"$w/chain_shape$i.profile"
+  run "struck_shape$i" "$CAP" "$p" sweep $w/struck.toml --out "$w/struck_shape$i.csv" --backend gpu
+  run "dimer_shape$i" "$CAP" "$p" sweep $w/dimer.toml --out "$w/dimer_shape$i.csv" --backend gpu
+done
+run stress_gpu  "$STRESS_CAP" "" sweep stress.toml --out $w/stress_gpu.csv --backend gpu --precision f64
+run stress_cpu        "$CAP" "" sweep stress.toml --out $w/stress_cpu.csv --backend cpu
 if [ -x ./chain_contract ] && ! [[ " $SKIP " == *" contract "* ]]; then
   for p in ${CONTRACT_PRECISIONS:-f64}; do
+    c=$(capped "$CAP"); [ "$c" = 0 ] && { log "contract_gpu_$p: not run (deadline)"; continue; }
     s=$(date +%s.%N)
-    timeout -k 5 "$CAP" ./chain_contract "$w/contract_$p.json" --skip "sensitive: 30" --backend gpu --precision $p >"$w/contract_$p.log" 2>&1
+    timeout -k 5 "$c" ./chain_contract "$w/contract_$p.json" --skip "sensitive: 30" --backend gpu --precision $p >"$w/contract_$p.log" 2>&1
     log "contract_gpu_$p       exit $? in $(python3 -c "print(f'{$(date +%s.%N)-$s:.2f}')") s: $(tail -2 "$w/contract_$p.log" | tr '\n' ' ')"
     [ -f "$w/contract_$p.json" ] && gzip -c "$w/contract_$p.json" >"$out/contract_$p.json.gz"
   done
 fi
-run stress_gpu  "$STRESS_CAP" "" sweep stress.toml --out $w/stress_gpu.csv --backend gpu --precision f64
-run stress_cpu        "$CAP" "" sweep stress.toml --out $w/stress_cpu.csv --backend cpu
 
 python3 - "$w" "$adapter" >"$table" <<'PY'
 import csv, filecmp, json, math, os, sys
@@ -218,9 +248,19 @@ rows += [
     ("grid1000 CPU, all cores", "grid_cpu", None),
     ("grid1000 hard-sphere CPU (floor)", "grid_hard_sphere", None),
     ("struck 1,000 x 1,000 beads GPU", "struck_gpu", "struck_cpu"),
+    ("struck 1,000 x 1,000 beads GPU, global path", "struck_gpu_global", "struck_cpu"),
     ("struck 1,000 x 1,000 beads CPU", "struck_cpu", None),
     ("dimer 512 x 100 beads GPU", "dimer_gpu", "dimer_cpu"),
+    ("dimer 512 x 100 beads GPU, global path", "dimer_gpu_global", "dimer_cpu"),
     ("dimer 512 x 100 beads CPU", "dimer_cpu", None),
+]
+i = 1
+while os.path.exists(f"{w}/chain_shape{i}.profile"):
+    p = open(f"{w}/chain_shape{i}.profile").read().strip()
+    rows.append((f"struck GPU [{p}]", f"struck_shape{i}", "struck_cpu"))
+    rows.append((f"dimer GPU [{p}]", f"dimer_shape{i}", "dimer_cpu"))
+    i += 1
+rows += [
     ("stress.toml GPU f64", "stress_gpu", "stress_cpu"),
     ("stress.toml CPU", "stress_cpu", None),
 ]

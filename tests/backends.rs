@@ -8,7 +8,7 @@ mod common;
 use std::sync::OnceLock;
 
 use hertz_cradle::backend::cpu::Cpu;
-use hertz_cradle::backend::gpu::{find_adapter, shader_source, Gpu, Profile, Want};
+use hertz_cradle::backend::gpu::{find_adapter, shader_source, ChainKernel, Gpu, Profile, Want};
 use hertz_cradle::backend::{Backend, Job};
 use hertz_cradle::engine::{Chain, Outcome, Overrides, Solver, Status};
 use hertz_cradle::scene::{Method, Precision, Scene};
@@ -343,8 +343,13 @@ fn shaders_validate_with_naga() {
         .validate(&module)
         .unwrap_or_else(|e| panic!("{}: {e:?}", p.name()));
     }
-    for p in [Precision::F64, Precision::Df64] {
-        let src = hertz_cradle::backend::gpu::chain_shader(p);
+    // The global path and a workgroup-memory one (1,024 beads).
+    for (p, local) in [Precision::F64, Precision::Df64]
+        .into_iter()
+        .flat_map(|p| [(p, 0), (p, 1024)])
+    {
+        let kernel = ChainKernel { local, wg: 64 };
+        let src = hertz_cradle::backend::gpu::chain_shader(p, kernel);
         let module = naga::front::wgsl::parse_str(&src)
             .unwrap_or_else(|e| panic!("chains {}: {}", p.name(), e.emit_to_string(&src)));
         // df64 chains need no 64-bit floats of the device.
@@ -688,7 +693,7 @@ fn shader_cites_only_rust_items_that_exist() {
     let body = [
         hertz_cradle::backend::gpu::SHADER_BODY,
         hertz_cradle::backend::gpu::WIDE_BODY,
-        &hertz_cradle::backend::gpu::chain_shader(Precision::F64),
+        &hertz_cradle::backend::gpu::chain_shader(Precision::F64, ChainKernel { local: 0, wg: 64 }),
     ]
     .concat();
     fn rust_under(dir: &std::path::Path, out: &mut String) {
@@ -1061,10 +1066,36 @@ fn gpu_profiles_parse_with_clear_errors() {
         ("hardware,speed=2", "unknown key \"speed\"; keys: batch"),
         ("software,timed=yes", "allowed true or false"),
         ("hardware,wide_above=0", "wide_above=0: allowed 1..=64"),
+        (
+            "hardware,chain_wg=100",
+            "chain_wg=100: allowed 32, 64, … 1024 or auto",
+        ),
+        ("hardware,chain_local=no", "allowed true or false"),
     ] {
         let e = Profile::parse(bad).unwrap_err().to_string();
         assert!(e.contains(says), "{bad}: {e}");
     }
+    let p = Profile::parse("software,chain_wg=256,chain_local=false").unwrap();
+    assert_eq!((p.chain_wg, p.chain_local), (Some(256), false));
+    assert_eq!(
+        Profile::parse("hardware,chain_wg=auto").unwrap().chain_wg,
+        None
+    );
+    // A hardware GPU's chain workgroups: about four beads an invocation,
+    // 64 to 256 (results/gpu_check.md).
+    use hertz_cradle::backend::gpu::chain_wg;
+    let wgs: Vec<u32> = [2, 100, 255, 256, 500, 1000, 10_000].map(chain_wg).to_vec();
+    assert_eq!(wgs, [64, 64, 64, 128, 128, 256, 256]);
+    // Which chains keep their velocities and forces in workgroup memory:
+    // 2·8 bytes a bead (a power of two of them, at least 64), 8 a
+    // reduction slot, 1.5 KB beside; none past the limit, however long.
+    use hertz_cradle::backend::gpu::local_beads;
+    assert_eq!(local_beads(1000, 256, 49_152), 1024);
+    assert_eq!(local_beads(10, 64, 49_152), 64);
+    assert_eq!(local_beads(1000, 64, 16_384), 0);
+    assert_eq!(local_beads(511, 64, 16_384), 512);
+    assert_eq!(local_beads(usize::MAX, 1024, u64::MAX / 2), 0);
+    assert_eq!(chain_wg(usize::MAX), 256);
 }
 
 /// Granular chains (docs/SPEC.md §9) through the chain kernel (a workgroup
@@ -1198,6 +1229,36 @@ fn gpu_chain_kernel_gives_the_cpus_chain_outcomes() {
             "chain {k}: {:?}",
             gpu[k].probes
         );
+    }
+    // Above, the chains up to 200 beads kept their velocities and forces
+    // in workgroup memory, the 10^4-bead ones in the storage buffer; the
+    // global path gives the same bits for the small ones too.
+    assert!(g.chain_kernel(200).local > 0 && g.chain_kernel(10_000).local == 0);
+    // The global path gives the same bits for small ones too, and so does
+    // another workgroup size (256 invocations, 40 beads: most idle): the
+    // struck chain (kinks and regions), the invalid one, the pulse (regions
+    // while it pushes) and the capped one.
+    let some = [0, 1, 4, 5];
+    let source = |k: usize| Ok(jobs[some[k]].clone());
+    for (chain_local, wg) in [(false, None), (true, Some(256))] {
+        let other = gpu_with(Profile {
+            chain_local,
+            chain_wg: wg,
+            ..g.profile()
+        });
+        let kernel = other.chain_kernel(200);
+        assert_eq!(
+            (kernel.local > 0, kernel.wg),
+            (chain_local, wg.unwrap_or(64))
+        );
+        let small = other.run_chains(some.len(), &source).unwrap();
+        for (&k, d) in some.iter().zip(&small) {
+            assert_eq!(
+                format!("{:?}", cpu[k]),
+                format!("{d:?}"),
+                "chain {k}, {kernel:?}"
+            );
+        }
     }
 }
 

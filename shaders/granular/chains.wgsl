@@ -14,7 +14,7 @@
 // state read back (engine::granular::run::finish). WGSL has no u64: steps
 // are two u32 words. x0, the first bead's displacement, is not kept (only
 // traces use it). The prelude (backend::gpu::granular::chain_shader) gives
-// the constants WG, MAX_STAGES, MARGIN_EXTRA, CHECK_MASK, F_*, SNAP_*,
+// the constants WG, LOCAL and LV (the workgroup-memory arrays below), MAX_STAGES, MARGIN_EXTRA, CHECK_MASK, F_*, SNAP_*,
 // ST_*, the reals END_SCALE, ALMOST_ONE, HALF_PI and PI (as the CPU rounds
 // them), the precision's `real` and its arithmetic r_* (backend::layout,
 // as the cradle kernels have them: every operation on a real is a call, so
@@ -128,6 +128,61 @@ var<workgroup> bad: atomic<u32>;
 var<workgroup> regions: atomic<u32>;
 var<workgroup> region_beads: atomic<u32>;
 var<workgroup> red: array<real, WG>;
+// The local refinement: some contact is near a crossing in this step.
+var<workgroup> nears: atomic<u32>;
+var<workgroup> near_any: u32;
+
+// LOCAL (the prelude's, with LV): the chain's velocities and excess forces
+// live in workgroup memory for the whole dispatch (loaded at its start,
+// written back at its end), the only per-bead data a step shares between
+// invocations (drift reads v_{j−1}, the accelerations e_{i+1}): every other
+// array is read and written by the invocation that owns the index within
+// the step (bead and contact k: invocation (k − lo) mod WG), so the stages
+// are separated by workgroup barriers, not device-scope storage barriers.
+// One storage barrier a step remains, before the observers (invocation 0
+// reads other beads' p and a) and the window's move (ownership changes).
+// Chains longer than LV − 1 beads take the global path (LOCAL false).
+var<workgroup> wv: array<real, LV>;
+var<workgroup> we: array<real, LV>;
+
+fn V(i: u32) -> real {
+    if (LOCAL) {
+        return wv[i];
+    }
+    return R[H.o_v + i];
+}
+
+fn set_v(i: u32, x: real) {
+    if (LOCAL) {
+        wv[i] = x;
+    } else {
+        R[H.o_v + i] = x;
+    }
+}
+
+fn E(j: u32) -> real {
+    if (LOCAL) {
+        return we[j];
+    }
+    return R[H.o_e + j];
+}
+
+fn set_e(j: u32, x: real) {
+    if (LOCAL) {
+        we[j] = x;
+    } else {
+        R[H.o_e + j] = x;
+    }
+}
+
+// Between the stages of a step: what they share is v and e.
+fn sync() {
+    if (LOCAL) {
+        workgroupBarrier();
+    } else {
+        storageBarrier();
+    }
+}
 
 // This chain's constants (the same in every invocation).
 var<private> me: u32;
@@ -185,7 +240,7 @@ fn kick_weight(j: u32, h: real) -> real {
 // v_i += c·a_i, beads lo .. hi.
 fn kick(lo: u32, hi: u32, c: real) {
     for (var i = lo + me; i < hi; i += WG) {
-        R[H.o_v + i] = r_add(R[H.o_v + i], r_mul(c, R[H.o_a + i]));
+        set_v(i, r_add(V(i), r_mul(c, R[H.o_a + i])));
     }
 }
 
@@ -195,17 +250,15 @@ fn drift(lo: u32, hi: u32, dt: real) {
     if (lo == hi) {
         return;
     }
-    let a = max(lo, 1u);
-    let z = min(hi, n - 1u);
-    for (var j = a + me; j <= z; j += WG) {
-        R[H.o_p + j] = r_add(R[H.o_p + j], r_mul(dt, r_sub(R[H.o_v + j - 1u], R[H.o_v + j])));
-    }
-    if (me == 0u) {
-        if (lo == 0u) {
-            R[H.o_p] = r_sub(R[H.o_p], r_mul(dt, R[H.o_v]));
-        }
-        if (hi == n) {
-            R[H.o_p + n] = r_add(R[H.o_p + n], r_mul(dt, R[H.o_v + n - 1u]));
+    // Contact j by the invocation that owns it in every loop of the step
+    // (the walls' too): its p is read by no other invocation in the step.
+    for (var j = lo + me; j <= hi; j += WG) {
+        if (j == 0u) {
+            R[H.o_p] = r_sub(R[H.o_p], r_mul(dt, V(0u)));
+        } else if (j == n) {
+            R[H.o_p + n] = r_add(R[H.o_p + n], r_mul(dt, V(n - 1u)));
+        } else {
+            R[H.o_p + j] = r_add(R[H.o_p + j], r_mul(dt, r_sub(V(j - 1u), V(j))));
         }
     }
 }
@@ -215,7 +268,7 @@ fn drift(lo: u32, hi: u32, dt: real) {
 fn excess_forces(lo: u32, hi: u32, track: bool, kc: real) {
     for (var j = lo + me; j <= hi; j += WG) {
         let x = r_sub(hertz(R[H.o_k + j], r_add(R[H.o_d0 + j], R[H.o_p + j])), R[H.o_f0 + j]);
-        R[H.o_e + j] = x;
+        set_e(j, x);
         if (track) {
             R[H.o_imp + j] = r_add(R[H.o_imp + j], r_mul(kc, x));
         }
@@ -226,12 +279,12 @@ fn excess_forces(lo: u32, hi: u32, track: bool, kc: real) {
 // `pulse`), then the kick by c.
 fn accelerate_kick(lo: u32, hi: u32, pulse: bool, f: real, c: real) {
     for (var i = lo + me; i < hi; i += WG) {
-        var acc = r_mul(r_sub(R[H.o_e + i], R[H.o_e + i + 1u]), R[H.o_im + i]);
+        var acc = r_mul(r_sub(E(i), E(i + 1u)), R[H.o_im + i]);
         if (pulse && i == H.pulse_bead) {
             acc = r_add(acc, r_mul(f, R[H.sc + SC_PULSE_IM]));
         }
         R[H.o_a + i] = acc;
-        R[H.o_v + i] = r_add(R[H.o_v + i], r_mul(c, acc));
+        set_v(i, r_add(V(i), r_mul(c, acc)));
     }
 }
 
@@ -274,16 +327,34 @@ fn miss(j: u32, h: real) -> real {
 // step::kinks for bead i: its left contact's share, then its right one's.
 fn kink_bead(i: u32, h: real) {
     if (crossed(i)) {
-        R[H.o_v + i] = r_add(R[H.o_v + i], r_mul(miss(i, h), R[H.o_im + i]));
+        set_v(i, r_add(V(i), r_mul(miss(i, h), R[H.o_im + i])));
     }
     if (crossed(i + 1u)) {
-        R[H.o_v + i] = r_sub(R[H.o_v + i], r_mul(miss(i + 1u, h), R[H.o_im + i]));
+        set_v(i, r_sub(V(i), r_mul(miss(i + 1u, h), R[H.o_im + i])));
     }
 }
 
 fn kinks(lo: u32, hi: u32, h: real) {
-    for (var i = lo + me; i < hi; i += WG) {
-        kink_bead(i, h);
+    if (!LOCAL) {
+        for (var i = lo + me; i < hi; i += WG) {
+            kink_bead(i, h);
+        }
+        return;
+    }
+    // By contact, from data its invocation owns: first each contact's share
+    // to its right bead (bead j: the same owner), then to its left one
+    // (bead j − 1: in workgroup memory), so that bead i takes its left
+    // contact's share before its right one's, as kink_bead does.
+    for (var j = lo + me; j < hi; j += WG) {
+        if (crossed(j)) {
+            set_v(j, r_add(V(j), r_mul(miss(j, h), R[H.o_im + j])));
+        }
+    }
+    workgroupBarrier();
+    for (var j = lo + me; j <= hi; j += WG) {
+        if (j > lo && crossed(j)) {
+            set_v(j - 1u, r_sub(V(j - 1u), r_mul(miss(j, h), R[H.o_im + j - 1u])));
+        }
     }
 }
 
@@ -308,7 +379,7 @@ fn v_at(k: u32, start: bool, lo: u32, hi: u32) -> real {
     if (start && k >= lo && k < hi) {
         return R[H.o_vs + k];
     }
-    return R[H.o_v + k];
+    return V(k);
 }
 
 // step::bead_rates' force rate of contact j: 1.5·k·√δ·δ' (δ > 0).
@@ -402,10 +473,10 @@ fn redo(a: u32, b: u32, t0: real, h: real, t_end: real, lo: u32, hi: u32) {
     }
     for (var j = a; j <= b; j++) {
         R[H.o_p + j] = R[H.o_ps + j];
-        R[H.o_e + j] = r_sub(hertz(R[H.o_k + j], r_add(R[H.o_d0 + j], R[H.o_p + j])), R[H.o_f0 + j]);
+        set_e(j, r_sub(hertz(R[H.o_k + j], r_add(R[H.o_d0 + j], R[H.o_p + j])), R[H.o_f0 + j]));
     }
     for (var i = a; i < b; i++) {
-        R[H.o_v + i] = R[H.o_vs + i];
+        set_v(i, R[H.o_vs + i]);
         R[H.o_a + i] = R[H.o_as + i];
     }
     let inv_m = R[H.sc + SC_INV_M];
@@ -425,10 +496,10 @@ fn redo(a: u32, b: u32, t0: real, h: real, t_end: real, lo: u32, hi: u32) {
         }
         var t = r_add(t0, r_mul(r_count(f, 0u), hf));
         let c0 = r_mul(r_mul(half, wts[0]), hf);
-        ja = r_add(ja, r_mul(c0, R[H.o_e + a]));
-        jb = r_add(jb, r_mul(c0, R[H.o_e + b]));
+        ja = r_add(ja, r_mul(c0, E(a)));
+        jb = r_add(jb, r_mul(c0, E(b)));
         for (var i = a; i < b; i++) {
-            R[H.o_v + i] = r_add(R[H.o_v + i], r_mul(c0, R[H.o_a + i]));
+            set_v(i, r_add(V(i), r_mul(c0, R[H.o_a + i])));
         }
         for (var k = 0u; k < s; k++) {
             let wj = wts[k];
@@ -449,33 +520,33 @@ fn redo(a: u32, b: u32, t0: real, h: real, t_end: real, lo: u32, hi: u32) {
             for (var j = a; j <= b; j++) {
                 let p = R[H.o_p + j];
                 if (j == 0u) {
-                    R[H.o_p] = r_sub(p, r_mul(dt, R[H.o_v]));
+                    R[H.o_p] = r_sub(p, r_mul(dt, V(0u)));
                 } else if (j == n) {
-                    R[H.o_p + n] = r_add(p, r_mul(dt, R[H.o_v + n - 1u]));
+                    R[H.o_p + n] = r_add(p, r_mul(dt, V(n - 1u)));
                 } else if (j == a && left) {
-                    R[H.o_p + j] = r_add(p, r_sub(da, r_mul(dt, R[H.o_v + j])));
+                    R[H.o_p + j] = r_add(p, r_sub(da, r_mul(dt, V(j))));
                 } else if (j == b && right) {
-                    R[H.o_p + j] = r_add(p, r_sub(r_mul(dt, R[H.o_v + j - 1u]), db));
+                    R[H.o_p + j] = r_add(p, r_sub(r_mul(dt, V(j - 1u)), db));
                 } else {
-                    R[H.o_p + j] = r_add(p, r_mul(dt, r_sub(R[H.o_v + j - 1u], R[H.o_v + j])));
+                    R[H.o_p + j] = r_add(p, r_mul(dt, r_sub(V(j - 1u), V(j))));
                 }
             }
             t = r_add(t, dt);
             for (var j = a; j <= b; j++) {
-                R[H.o_e + j] = r_sub(hertz(R[H.o_k + j], r_add(R[H.o_d0 + j], R[H.o_p + j])), R[H.o_f0 + j]);
+                set_e(j, r_sub(hertz(R[H.o_k + j], r_add(R[H.o_d0 + j], R[H.o_p + j])), R[H.o_f0 + j]));
             }
             for (var i = a; i < b; i++) {
-                R[H.o_a + i] = r_mul(r_sub(R[H.o_e + i], R[H.o_e + i + 1u]), R[H.o_im + i]);
+                R[H.o_a + i] = r_mul(r_sub(E(i), E(i + 1u)), R[H.o_im + i]);
             }
             if (pulse) {
                 let fp = r_mul(pforce, pulse_sin(t, omega));
                 R[H.o_a + H.pulse_bead] = r_add(R[H.o_a + H.pulse_bead], r_mul(fp, R[H.sc + SC_PULSE_IM]));
             }
             let kc = kick_weight(k, hf);
-            ja = r_add(ja, r_mul(kc, R[H.o_e + a]));
-            jb = r_add(jb, r_mul(kc, R[H.o_e + b]));
+            ja = r_add(ja, r_mul(kc, E(a)));
+            jb = r_add(jb, r_mul(kc, E(b)));
             for (var i = a; i < b; i++) {
-                R[H.o_v + i] = r_add(R[H.o_v + i], r_mul(kc, R[H.o_a + i]));
+                set_v(i, r_add(V(i), r_mul(kc, R[H.o_a + i])));
             }
         }
         for (var i = a; i < b; i++) {
@@ -499,8 +570,8 @@ fn redo(a: u32, b: u32, t0: real, h: real, t_end: real, lo: u32, hi: u32) {
 // step::redo's last part for an outside bead i: the impulse dv, then its
 // acceleration from the new forces.
 fn fix_outside(i: u32, dv: real, on: bool, t_end: real) {
-    R[H.o_v + i] = r_add(R[H.o_v + i], r_mul(dv, R[H.o_im + i]));
-    var acc = r_mul(r_sub(R[H.o_e + i], R[H.o_e + i + 1u]), R[H.o_im + i]);
+    set_v(i, r_add(V(i), r_mul(dv, R[H.o_im + i])));
+    var acc = r_mul(r_sub(E(i), E(i + 1u)), R[H.o_im + i]);
     if (on && H.pulse_bead == i) {
         let w = R[H.sc + SC_OMEGA];
         acc = r_add(acc, r_mul(r_mul(R[H.sc + SC_PULSE_FORCE], pulse_sin(t_end, w)), R[H.sc + SC_PULSE_IM]));
@@ -516,7 +587,21 @@ fn refine_near(lo: u32, hi: u32, t0: real, h: real, t_end: real) {
         if (crossed(j)) {
             R[H.o_imp + j] = r_add(R[H.o_imp + j], miss(j, h));
         }
-        R[H.o_fl + j] = select(real(0.0), real(1.0), is_near(j));
+        let near = is_near(j);
+        R[H.o_fl + j] = select(real(0.0), real(1.0), near);
+        if (near) {
+            atomicStore(&nears, 1u);
+        }
+    }
+    // The groups and their regions only when some contact is near (the
+    // scan reads other invocations' flags, a region's redo every array of
+    // its beads): most steps of a long chain have none.
+    workgroupBarrier();
+    if (me == 0u) {
+        near_any = atomicLoad(&nears);
+    }
+    if (workgroupUniformLoad(&near_any) == 0u) {
+        return;
     }
     storageBarrier();
     let l = H.reach;
@@ -556,6 +641,7 @@ fn refine_near(lo: u32, hi: u32, t0: real, h: real, t_end: real) {
         }
     }
     storageBarrier();
+    workgroupBarrier();
 }
 
 // step::step_portable from st.t0 by st.h over the window st.lo .. st.hi.
@@ -579,23 +665,23 @@ fn step(st: Step) {
     }
     if (refine) {
         for (var i = lo + me; i < hi; i += WG) {
-            R[H.o_vs + i] = R[H.o_v + i];
+            R[H.o_vs + i] = V(i);
             R[H.o_as + i] = R[H.o_a + i];
         }
         for (var j = lo + me; j <= hi; j += WG) {
-            R[H.o_imp + j] = r_mul(c0, R[H.o_e + j]);
+            R[H.o_imp + j] = r_mul(c0, E(j));
         }
     }
     kick(lo, hi, c0);
-    storageBarrier();
+    sync();
     for (var j = 0u; j < s; j++) {
         let wj = wts[j];
         drift(lo, hi, r_mul(wj, h));
         t = r_add(t, r_mul(wj, h));
-        storageBarrier();
+        sync();
         let c = kick_weight(j, h);
         excess_forces(lo, hi, refine, c);
-        storageBarrier();
+        sync();
         // step::pulse_on: by the step's start, not the substep's time.
         let on = has_pulse && r_lt(st.t0, pdur);
         var f = real(0.0);
@@ -603,11 +689,11 @@ fn step(st: Step) {
             f = r_mul(pforce, pulse_sin(t, omega));
         }
         accelerate_kick(lo, hi, on, f, c);
-        storageBarrier();
+        sync();
     }
     if (kinked) {
         kinks(lo, hi, h);
-        storageBarrier();
+        sync();
     }
     if (refine) {
         refine_near(lo, hi, st.t0, h, t);
@@ -616,15 +702,16 @@ fn step(st: Step) {
 
 // ---- the observers (observe.rs): invocation 0 ----
 
-// x_{j−1} − x_j of a per-bead rate at offset o, walls at rest.
-fn across(o: u32, j: u32) -> real {
+// x_{j−1} − x_j of the velocities (`accel` false) or the accelerations
+// across contact j, walls at rest.
+fn across(accel: bool, j: u32) -> real {
     var l = real(0.0);
     if (j > 0u) {
-        l = R[o + j - 1u];
+        l = select(V(j - 1u), R[H.o_a + j - 1u], accel);
     }
     var r = real(0.0);
     if (j < H.n) {
-        r = R[o + j];
+        r = select(V(j), R[H.o_a + j], accel);
     }
     return r_sub(l, r);
 }
@@ -637,8 +724,8 @@ fn force_rates(j: u32) -> Q {
         return Q(real(0.0), real(0.0), real(0.0));
     }
     let sq = r_sqrt(d);
-    let r1 = across(H.o_v, j);
-    let r2 = across(H.o_a, j);
+    let r1 = across(false, j);
+    let r2 = across(true, j);
     return Q(
         r_mul(r_mul(k, d), sq),
         r_mul(r_mul(r_mul(real(1.5), k), sq), r1),
@@ -658,7 +745,7 @@ fn bead_rates_with(i: u32, t: real, left: real, right: real) -> Q {
         let w = R[H.sc + SC_OMEGA];
         jerk = r_add(jerk, r_mul(r_mul(r_mul(R[H.sc + SC_PULSE_FORCE], w), pulse_cos(t, w)), R[H.sc + SC_PULSE_IM]));
     }
-    return Q(R[H.o_v + i], R[H.o_a + i], jerk);
+    return Q(V(i), R[H.o_a + i], jerk);
 }
 
 // a·x as quintic's terms are written (c · x, the constant first).
@@ -869,6 +956,7 @@ fn top() {
     atomicStore(&bad, 0u);
     atomicStore(&regions, 0u);
     atomicStore(&region_beads, 0u);
+    atomicStore(&nears, 0u);
     if (hd.done != 0u) {
         return;
     }
@@ -998,9 +1086,17 @@ fn main(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) 
         wts[j] = R[H.o_w + j];
     }
     let n = H.n;
+    if (LOCAL) {
+        for (var i = me; i < n; i += WG) {
+            wv[i] = R[H.o_v + i];
+        }
+        for (var j = me; j <= n; j += WG) {
+            we[j] = R[H.o_e + j];
+        }
+    }
     var k = 0u;
     loop {
-        storageBarrier();
+        sync();
         if (me == 0u) {
             top();
         }
@@ -1011,11 +1107,24 @@ fn main(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) 
         step(st);
         // State::shrink: the first and last moving bead of the old window.
         let pulse_on = (H.flags & F_PULSE) != 0u && r_lt(r_add(st.t0, st.h), R[H.sc + SC_PULSE_DURATION]);
+        // Each invocation's own first and last, then one atomic each (not
+        // one per moving bead on the same two words).
+        var mine_first = NONE;
+        var mine_last = 0u;
         for (var i = st.lo + me; i < st.hi; i += WG) {
-            if (r_nz(R[H.o_v + i]) || r_nz(R[H.o_a + i]) || (pulse_on && i == H.pulse_bead)) {
-                atomicMin(&first_moving, i);
-                atomicMax(&last_moving, i);
+            if (r_nz(V(i)) || r_nz(R[H.o_a + i]) || (pulse_on && i == H.pulse_bead)) {
+                mine_first = min(mine_first, i);
+                mine_last = max(mine_last, i);
             }
+        }
+        if (mine_first != NONE) {
+            atomicMin(&first_moving, mine_first);
+            atomicMax(&last_moving, mine_last);
+        }
+        if (LOCAL) {
+            // The observers read other invocations' p and a; the next
+            // step's window gives beads new owners.
+            storageBarrier();
         }
         workgroupBarrier();
         if (me == 0u) {
@@ -1024,7 +1133,7 @@ fn main(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) 
         let after = workgroupUniformLoad(&ws);
         if ((after.snaps & SNAP_WIDTH) != 0u) {
             for (var i = me; i < n; i += WG) {
-                R[H.o_snapv + i] = R[H.o_v + i];
+                R[H.o_snapv + i] = V(i);
             }
         }
         if ((after.snaps & SNAP_ENERGY) != 0u) {
@@ -1032,7 +1141,7 @@ fn main(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) 
                 R[H.o_snapp + i] = R[H.o_p + i];
             }
             for (var i = me; i < n; i += WG) {
-                R[H.o_snapev + i] = R[H.o_v + i];
+                R[H.o_snapev + i] = V(i);
             }
         }
         if (after.check != 0u) {
@@ -1047,7 +1156,7 @@ fn main(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) 
             }
             red[me] = m;
             for (var i = after.lo + me; i < after.hi; i += WG) {
-                if (!r_finite(R[H.o_v + i])) {
+                if (!r_finite(V(i))) {
                     atomicStore(&bad, 1u);
                 }
             }
@@ -1067,6 +1176,15 @@ fn main(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) 
         k += 1u;
         if (k >= steps) {
             break;
+        }
+    }
+    if (LOCAL) {
+        workgroupBarrier();
+        for (var i = me; i < n; i += WG) {
+            R[H.o_v + i] = wv[i];
+        }
+        for (var j = me; j <= n; j += WG) {
+            R[H.o_e + j] = we[j];
         }
     }
     if (me == 0u) {

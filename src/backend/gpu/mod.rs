@@ -37,7 +37,7 @@ use crate::engine::{plan, simulate_chain, Chain, Outcome, Silent, Solver, UNSTEP
 use crate::scene::Precision;
 pub use adapter::{find_adapter, quiet_mesa_without_session, Want};
 use device::WORKGROUP;
-pub use granular::chain_shader;
+pub use granular::{chain_shader, chain_wg, local_beads, ChainKernel};
 pub use probe::DF64_PROBE_OPS;
 use profile::Tracker;
 pub use profile::{dispatch_budget, Profile};
@@ -102,8 +102,14 @@ pub struct Gpu {
     max_binding: u64,
     profile: Profile,
     stats: Tracker,
-    /// The chain pipeline of each precision (f64, df64), built on first use.
-    chain_pipe: Mutex<[Option<Arc<granular::ChainPipe>>; 2]>,
+    /// Largest workgroup memory (bytes): what decides which chains keep
+    /// their velocities and forces there.
+    wg_bytes: u64,
+    /// Most invocations in a workgroup.
+    wg_invocations: u32,
+    /// The chain pipelines by precision (f64, df64) and beads in workgroup
+    /// memory (0: the global path), built on first use.
+    chain_pipes: Mutex<HashMap<(Precision, granular::ChainKernel), Arc<granular::ChainPipe>>>,
     /// Batches on the device now: at most `profile.calls` (more calls than
     /// that are admitted, `host_ahead` of them planning, packing or unpacking).
     on_device: crate::backend::Gate,
@@ -154,6 +160,11 @@ impl Gpu {
         };
         let max_workgroups = device.limits().max_compute_workgroups_per_dimension;
         let max_binding = device.limits().max_storage_buffer_binding_size;
+        let wg_bytes = device.limits().max_compute_workgroup_storage_size as u64;
+        let wg_invocations = device
+            .limits()
+            .max_compute_invocations_per_workgroup
+            .min(device.limits().max_compute_workgroup_size_x);
         let gpu = Gpu {
             device,
             queue,
@@ -166,7 +177,9 @@ impl Gpu {
             max_binding,
             profile,
             stats: Tracker::default(),
-            chain_pipe: Mutex::new([None, None]),
+            wg_bytes,
+            wg_invocations,
+            chain_pipes: Mutex::new(HashMap::new()),
             on_device: crate::backend::Gate::new(profile.calls),
         };
         Ok(gpu)

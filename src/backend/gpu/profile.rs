@@ -62,6 +62,15 @@ pub struct Profile {
     /// memory instead of spilled arrays. Few such chains fill a device
     /// poorly either way; this keeps each one's time short.
     pub wide_above: Option<usize>,
+    /// Granular chains keep their velocities and excess forces in
+    /// workgroup memory when they fit the adapter's limit
+    /// (`granular::local_beads`): the stages of a step then wait on
+    /// workgroup barriers instead of device-scope storage barriers. Off:
+    /// every chain takes the global path (for comparing the two).
+    pub chain_local: bool,
+    /// Invocations per workgroup of the chain kernel (`None`: by the
+    /// chain's length, `granular::chain_wg`), at most the device's.
+    pub chain_wg: Option<u32>,
 }
 
 impl Profile {
@@ -87,6 +96,8 @@ impl Profile {
         timed: true,
         cpu_above: None,
         wide_above: Some(16),
+        chain_local: true,
+        chain_wg: None,
     };
     /// lavapipe runs on the cores the lanes use: the CPU's batch, one call at
     /// a time (two at once were 3× slower on grid100), a worker per scene,
@@ -100,6 +111,9 @@ impl Profile {
         timed: false,
         cpu_above: None,
         wide_above: None,
+        chain_local: true,
+        // lavapipe runs every invocation, idle or not, on the same cores.
+        chain_wg: Some(super::granular::CHAIN_WG),
     };
 
     /// `CRADLE_GPU_PROFILE`'s value, if set: `hardware` or `software`, then
@@ -124,7 +138,7 @@ impl Profile {
                 bail!("{other:?}: allowed values are hardware and software (then ,key=value pairs)")
             }
         };
-        const KEYS: &str = "batch (1..=1048576), calls (1..=64), host_ahead (0..=64), scenes_per_worker (1..=1024), rounds (1..=65536 or auto), timed (true|false), cpu_above (2..=64 or none), wide_above (1..=64 or none)";
+        const KEYS: &str = "batch (1..=1048576), calls (1..=64), host_ahead (0..=64), scenes_per_worker (1..=1024), rounds (1..=65536 or auto), timed (true|false), cpu_above (2..=64 or none), wide_above (1..=64 or none), chain_local (true|false), chain_wg (32, 64, … 1024 or auto)";
         for kv in parts {
             let Some((k, v)) = kv.split_once('=') else {
                 bail!("{kv:?}: expected key=value; keys: {KEYS}");
@@ -146,6 +160,20 @@ impl Profile {
                     p.timed = v
                         .parse()
                         .map_err(|_| anyhow!("{k}={v}: allowed true or false"))?
+                }
+                "chain_local" => {
+                    p.chain_local = v
+                        .parse()
+                        .map_err(|_| anyhow!("{k}={v}: allowed true or false"))?
+                }
+                "chain_wg" if v == "auto" => p.chain_wg = None,
+                "chain_wg" => {
+                    p.chain_wg = Some(
+                        v.parse::<u32>()
+                            .ok()
+                            .filter(|n| (32..=1024).contains(n) && n.is_power_of_two())
+                            .ok_or_else(|| anyhow!("{k}={v}: allowed 32, 64, … 1024 or auto"))?,
+                    )
                 }
                 "cpu_above" if v == "none" => p.cpu_above = None,
                 "cpu_above" => p.cpu_above = Some(int(2, 64)? as usize),

@@ -70,7 +70,12 @@ impl Gpu {
     /// the precision and class, before any scene runs.
     pub fn prepare(&self, needs: &Needs) -> Result<()> {
         if needs.chains {
-            return self.chain_pipe(needs.precision).map(|_| ());
+            // The global path; the workgroup-memory ones on first use.
+            let kernel = super::ChainKernel {
+                local: 0,
+                ..self.chain_kernel(0)
+            };
+            return self.chain_pipe(needs.precision, kernel).map(|_| ());
         }
         if !needs.hertz {
             return Ok(());
