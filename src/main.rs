@@ -272,6 +272,7 @@ fn optimize(args: hertz_cradle::cli::OptimizeArgs) -> anyhow::Result<()> {
         threads: args.threads,
         solver: args.solver.settings(),
         resume: args.resume,
+        command: std::env::args().collect(),
     };
     let req = OptimizeRequest::new(problem, &args.out, args.best.as_deref(), &settings)?;
     let column = req.problem.objective.0.clone();

@@ -1125,6 +1125,27 @@ fn optimize_is_deterministic_and_its_best_reproduces() {
     let (one, best) = out("one.csv", "1");
     let (two, _) = out("two.csv", "2");
     assert_eq!(one, two, "thread count changed the bytes");
+    // The table's sidecar, as a sweep's: the problem file, the run as
+    // resolved, the seal of the very bytes written.
+    let sc: serde_json::Value =
+        serde_json::from_str(&fs::read_to_string(dir.path().join("one.csv.json")).unwrap())
+            .unwrap();
+    assert_eq!(sc["sweep_file"], problem.as_str());
+    assert_eq!(sc["sweep"]["optimize"]["objective"], "v_2");
+    assert_eq!(sc["sweep"]["optimize"]["direction"], "maximize");
+    assert_eq!(sc["sweep"]["optimize"]["evaluations"], 64);
+    assert_eq!(sc["table"]["rows"], 64);
+    assert_eq!(sc["table"]["bytes"], one.len());
+    assert_eq!(sc["command"][1], "optimize");
+    // --best may not be the table's sidecar.
+    let side = dir.path().join("x.csv.json").display().to_string();
+    let x = dir.path().join("x.csv").display().to_string();
+    let o = cradle()
+        .args(["optimize", &problem, "--out", &x, "--best", &side])
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("its sidecar"));
     // The summary names the pool that ran it (it said "2 threads" for 1).
     let three = dir.path().join("three.csv").display().to_string();
     let o = cradle()

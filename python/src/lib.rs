@@ -411,6 +411,11 @@ fn problem_request(
         threads,
         solver: solver(precision, tolerance, method, model)?,
         resume: false,
+        command: vec![
+            "python".to_string(),
+            "hertz_cradle.optimize".to_string(),
+            out.to_string(),
+        ],
     };
     OptimizeRequest::new(
         problem,

@@ -7,14 +7,16 @@
 //! - `GET /vendor/uPlot.js`, `GET /vendor/uPlot.css`: the plotting library
 //!   the page draws with (uPlot 1.6.32, MIT, vendored in `vendor/`).
 //! - `GET /api/meta`: the table's columns (with their units), its grid
-//!   (axes, their values and units), the file's name.
+//!   (axes, their values and units), the file's name; for an optimisation's
+//!   table, `optimize` (objective, direction, variables: its sidecar's).
 //! - `GET /api/map?x=AXIS&y=AXIS&z=COLUMN&at=I,J,…`: the z values of the
 //!   x × y slice of the grid at the given indices of the other axes.
 //! - `GET /api/points?x=COLUMN&y=COLUMN&z=COLUMN`: x, y, z and id of every
 //!   row, for a table that is not a grid (a point list, a sampling design).
 //! - `GET /api/row?id=N`: one row as text.
 //! - `GET /api/scene?id=N`: that scene run again by the CPU engine from the
-//!   sweep named in the sidecar: its outcome, its trace (at most
+//!   sweep named in the sidecar (an optimisation's candidate: the problem
+//!   file's base scene at the row's variable values): its outcome, its trace (at most
 //!   [`MAX_TRACE_ROWS`] rows, said in the reply) and its outcome under the
 //!   `hard-sphere` and `closure` models; for a sweep of granular chains,
 //!   the chain's outcome columns and its bead histories (`histories`: beads,
@@ -82,8 +84,21 @@ struct Data {
     dims: Vec<u64>,
     /// The sweep that made the table, to run a scene again.
     sweep: Option<Sweep>,
+    /// An optimisation's table: its sidecar's `optimize` (objective,
+    /// direction, variables), and the problem file it ran (a candidate's
+    /// scene is the problem's base scene at the row's variable values).
+    optimize: Option<Json_>,
+    problem: Option<Optimized>,
+    /// Why scenes cannot be run again (when neither is there).
     sweep_problem: String,
     runs: Arc<tokio::sync::Semaphore>,
+}
+
+/// An optimisation's problem, as the table's sidecar recorded it.
+struct Optimized {
+    problem: crate::optimize::Problem,
+    /// The table column of each variable, in the problem's order.
+    columns: Vec<usize>,
 }
 
 fn err(code: StatusCode, msg: impl Into<String>) -> Response {
@@ -164,8 +179,19 @@ fn load(path: &Path) -> Result<Data> {
     if dims.iter().product::<u64>() != rows as u64 {
         axes.clear();
     }
-    // The sweep file, as named in the sidecar (from where it ran, or beside the table).
-    let (sweep, sweep_problem) = sweep_of(path, sc.as_ref());
+    // The sweep file, as named in the sidecar (from where it ran, or beside
+    // the table); an optimisation's problem file likewise.
+    let optimize = sc.as_ref().and_then(|s| s.sweep.get("optimize").cloned());
+    let (sweep, problem, sweep_problem) = match &sc {
+        Some(sc) if optimize.is_some() => match problem_of(path, sc, &header) {
+            Ok(p) => (None, Some(p), String::new()),
+            Err(why) => (None, None, why),
+        },
+        _ => {
+            let (s, why) = sweep_of(path, sc.as_ref());
+            (s, None, why)
+        }
+    };
     let row_of: HashMap<u64, usize> = match header.iter().position(|h| h == "id") {
         Some(k) => {
             let mut m = HashMap::with_capacity(rows);
@@ -198,9 +224,86 @@ fn load(path: &Path) -> Result<Data> {
         axes,
         dims,
         sweep,
+        optimize,
+        problem,
         sweep_problem,
         runs: Arc::new(tokio::sync::Semaphore::new(MAX_RUNS)),
     })
+}
+
+/// The file a sidecar names (`sweep_file`): as named (from where it ran),
+/// from the table's folder, or by its file name beside the table (`cradle
+/// sweep run/s.toml --out run/t.csv`, explored from inside run/).
+fn named_file(path: &Path, f: &str) -> Option<PathBuf> {
+    let dir = path.parent().unwrap_or(Path::new("."));
+    let beside = Path::new(f).file_name().map(|n| dir.join(n));
+    [Some(PathBuf::from(f)), Some(dir.join(f)), beside]
+        .into_iter()
+        .flatten()
+        .find(|p| p.is_file())
+}
+
+/// An optimisation table's problem file, found as [`named_file`] finds it
+/// and still resolving to the problem the sidecar recorded (its
+/// fingerprint: the problem, the solver flags, the version), with the table
+/// column of each variable; else why not.
+fn problem_of(
+    path: &Path,
+    sc: &crate::output::sidecar::Sidecar,
+    header: &[String],
+) -> Result<Optimized, String> {
+    let f = &sc.sweep_file;
+    let Some(file) = named_file(path, f) else {
+        return Err(format!("the problem file {f} named in the sidecar is not found (as named, from the table's folder, or beside the table): run explore from where the optimisation ran"));
+    };
+    let problem =
+        crate::optimize::Problem::load(&file).map_err(|e| format!("the problem file {f}: {e}"))?;
+    if crate::optimize::request::fingerprint(&problem, &sc.overrides()) != sc.fingerprint {
+        return Err(format!("the problem file {f} (or a scene file it names) changed since this table was made, or another cradle version made it: its candidates' scenes would not be this table's rows; restore it, or run the optimisation again"));
+    }
+    let columns = problem
+        .variables
+        .iter()
+        .map(|v| {
+            header
+                .iter()
+                .position(|h| *h == v.name)
+                .ok_or_else(|| format!("the table has no column {:?} (a variable of {f})", v.name))
+        })
+        .collect::<Result<Vec<usize>, String>>()?;
+    Ok(Optimized { problem, columns })
+}
+
+impl Data {
+    /// Scene `id` of the table as a scene file's contents: the sweep's
+    /// scene, or the optimisation's candidate (the problem's base scene at
+    /// the row's variable values, each checked against its variable).
+    fn scene_spec(&self, id: u64, row: usize) -> anyhow::Result<crate::scene::SceneSpec> {
+        if let Some(o) = &self.problem {
+            let values: Vec<Value> = o
+                .columns
+                .iter()
+                .map(|&k| {
+                    let t = self.cell(k, row);
+                    match t.trim().parse::<f64>() {
+                        Ok(x) => Value::Num(x),
+                        Err(_) => Value::Text(t),
+                    }
+                })
+                .collect();
+            o.problem.check_design(row, &values)?;
+            return Ok(o.problem.spec_of(&values));
+        }
+        match &self.sweep {
+            Some(s) => s.scene_spec(id),
+            None => anyhow::bail!("scenes cannot be run: {}", self.sweep_problem),
+        }
+    }
+
+    /// Whether scenes can be run again (a sweep or a problem file found).
+    fn runnable(&self) -> bool {
+        self.sweep.is_some() || self.problem.is_some()
+    }
 }
 
 /// The sweep a table's sidecar names, found as named (from where the sweep
@@ -213,15 +316,7 @@ fn sweep_of(path: &Path, sc: Option<&crate::output::sidecar::Sidecar>) -> (Optio
             "the table has no sidecar naming its sweep file".to_string(),
         ),
         Some(f) => {
-            // As named (from where the sweep ran), then from the table's
-            // folder, then its file name beside the table (`cradle sweep
-            // run/s.toml --out run/t.csv`, explored from inside run/).
-            let dir = path.parent().unwrap_or(Path::new("."));
-            let beside = Path::new(f).file_name().map(|n| dir.join(n));
-            let found = [Some(PathBuf::from(f)), Some(dir.join(f)), beside]
-                .into_iter()
-                .flatten()
-                .find(|p| p.is_file());
+            let found = named_file(path, f);
             let recorded = sc.map(|s| &s.sweep);
             match found.map(|p| Sweep::load(&p)) {
             // The file must still resolve to the sweep the sidecar
@@ -302,7 +397,8 @@ async fn meta(State(d): State<Arc<Data>>) -> Response {
         .collect();
     Json(json!({
         "file": d.name, "rows": d.rows, "columns": columns, "axes": axes, "steps": d.steps(),
-        "scenes": d.sweep.is_some(), "scenes_problem": d.sweep_problem,
+        "scenes": d.runnable(), "scenes_problem": d.sweep_problem,
+        "optimize": d.optimize,
         "max_trace_rows": MAX_TRACE_ROWS,
     }))
     .into_response()
@@ -494,23 +590,26 @@ async fn row(State(d): State<Arc<Data>>, Query(q): Query<HashMap<String, String>
     Json(json!({"id": id, "row": fields})).into_response()
 }
 
-/// Run scene `id` of the sweep again for a closer look (its model's
+/// Run scene `id` (row `row`) again for a closer look (its model's
 /// [`crate::model::Model::look`]).
-fn run_scene(
-    sweep: &Sweep,
-    id: u64,
-    o: &crate::engine::Overrides,
-    stop: &crate::engine::Stop,
-) -> Result<Json_> {
-    sweep.model.look(id, sweep.scene(id), o, stop)
+fn run_scene(d: &Data, id: u64, row: usize, stop: &crate::engine::Stop) -> Result<Json_> {
+    let o = &d.overrides;
+    match (&d.sweep, &d.problem) {
+        (Some(sweep), _) => sweep.model.look(id, sweep.scene(id), o, stop),
+        (None, Some(opt)) => {
+            let scene = d.scene_spec(id, row)?.validate();
+            opt.problem.model.look(id, scene, o, stop)
+        }
+        (None, None) => anyhow::bail!("scenes cannot be run: {}", d.sweep_problem),
+    }
 }
 
 async fn scene(State(d): State<Arc<Data>>, Query(q): Query<HashMap<String, String>>) -> Response {
-    let id = match id_param(&d, &q) {
-        Ok((id, _)) => id,
+    let (id, row) = match id_param(&d, &q) {
+        Ok(i) => i,
         Err(e) => return e,
     };
-    if d.sweep.is_none() {
+    if !d.runnable() {
         return err(
             StatusCode::NOT_FOUND,
             format!("scenes cannot be run: {}", d.sweep_problem),
@@ -527,12 +626,7 @@ async fn scene(State(d): State<Arc<Data>>, Query(q): Query<HashMap<String, Strin
     let stop2 = stop.clone();
     let task = tokio::task::spawn_blocking(move || {
         let r = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-            run_scene(
-                d2.sweep.as_ref().expect("checked above"),
-                id,
-                &d2.overrides,
-                &stop2,
-            )
+            run_scene(&d2, id, row, &stop2)
         }));
         drop(permit);
         r
@@ -560,16 +654,16 @@ async fn scene_toml(
     State(d): State<Arc<Data>>,
     Query(q): Query<HashMap<String, String>>,
 ) -> Response {
-    let id = match id_param(&d, &q) {
-        Ok((id, _)) => id,
+    let (id, row) = match id_param(&d, &q) {
+        Ok(i) => i,
         Err(e) => return e,
     };
-    let Some(sweep) = &d.sweep else {
+    if !d.runnable() {
         return err(
             StatusCode::NOT_FOUND,
             format!("scenes cannot be exported: {}", d.sweep_problem),
         );
-    };
+    }
     // The sweep's solver flags go into the scene's [solver], so that
     // `cradle run` on it gives this row (they were left out: 18–21 cells
     // differed under --method/--tolerance/--precision).
@@ -597,8 +691,8 @@ async fn scene_toml(
         }
         _ => String::new(),
     };
-    match sweep
-        .scene_spec(id)
+    match d
+        .scene_spec(id, row)
         .map(with_flags)
         .and_then(|s| toml::to_string(&s).map_err(|e| anyhow::anyhow!(e)))
     {

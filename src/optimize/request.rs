@@ -22,6 +22,8 @@ pub struct OptimizeSettings {
     pub solver: SolverSettings,
     /// Continue an interrupted run from `OUT.partial`.
     pub resume: bool,
+    /// The command as the user gave it (the sidecar's `command`).
+    pub command: Vec<String>,
 }
 
 impl Default for OptimizeSettings {
@@ -31,6 +33,7 @@ impl Default for OptimizeSettings {
             threads: None,
             solver: SolverSettings::default(),
             resume: false,
+            command: vec![],
         }
     }
 }
@@ -40,7 +43,7 @@ pub const PARTIAL: &str = ".partial";
 
 /// What an output of an optimisation may not be beside: its partial file,
 /// the temporary file of the final write, the lock.
-const COMPANIONS: &[&str] = &[PARTIAL, crate::output::publish::TMP, ".lock"];
+const COMPANIONS: &[&str] = &[PARTIAL, crate::output::publish::TMP, ".lock", ".json"];
 
 /// A checked optimisation: nothing has run yet.
 #[derive(Debug)]
@@ -56,6 +59,7 @@ pub struct OptimizeRequest {
     overrides: Overrides,
     solver: Solver,
     resume: bool,
+    command: Vec<String>,
 }
 
 /// What a run did.
@@ -96,11 +100,12 @@ impl OptimizeRequest {
         let best = best
             .map(|b| guard::output("--best", b, &problem.inputs, COMPANIONS))
             .transpose()?;
-        if best.as_ref() == Some(&out) {
+        if best.as_ref() == Some(&out) || best.as_ref() == Some(&crate::output::sidecar::path(&out))
+        {
             return Err(flag(
                 "--best",
                 &out.display().to_string(),
-                "another file than --out",
+                "another file than --out and its sidecar (--out's name + .json)",
             ));
         }
         let threads = settings.threads.map(crate::request::threads).transpose()?;
@@ -114,27 +119,14 @@ impl OptimizeRequest {
             overrides,
             solver,
             resume: settings.resume,
+            command: settings.command.clone(),
         })
     }
 
     /// What a resumed run must share with the run it continues: the
     /// problem as resolved, the flags and the version (CRC-32, hex).
     fn fingerprint(&self) -> String {
-        let p = &self.problem;
-        let text = format!(
-            "{:?}|{:?}|{:?}|{:?}|{:?}|{}|{}|{}|{:?}|{}",
-            p.scene,
-            p.variables,
-            p.objective,
-            p.constraints,
-            p.method,
-            p.population,
-            p.generations,
-            p.seed,
-            self.overrides,
-            env!("CARGO_PKG_VERSION")
-        );
-        format!("{:08x}", crc32fast::hash(text.as_bytes()))
+        fingerprint(&self.problem, &self.overrides)
     }
 
     /// The rows of the whole generations `partial` holds (a torn last row
@@ -244,6 +236,8 @@ impl OptimizeRequest {
             .map_err(Error::Runtime)?
             .map_err(Error::from)?;
         write_with(&self.out, |w| p.write_table(&fin.rows, self.format, w)).map_err(Error::from)?;
+        self.write_sidecar(&fin.rows, fin.wall_s, b)
+            .map_err(Error::Runtime)?;
         let _ = std::fs::remove_file(&partial);
         let best_toml = fin
             .best
@@ -286,6 +280,90 @@ impl OptimizeRequest {
             .map_err(Error::Runtime)?
             .map_err(Error::from)?;
         write_alone(&self.out, |w| p.write_table(&rows, self.format, w)).map_err(Error::from)?;
+        self.write_sidecar(&rows, 0.0, b).map_err(Error::Runtime)?;
         Ok(rows)
     }
+
+    /// The table's sidecar (`OUT.json`, as a sweep's: tool, version,
+    /// command, the problem file, backend, solver flags, the table's seal),
+    /// its `sweep` the resolved optimisation (`optimize`: objective and
+    /// direction, variables, method, population, evaluations, seed): what
+    /// `cradle explore` reads to draw the convergence and to run a
+    /// candidate's scene again. Written after the table, so that a sidecar
+    /// never vouches for a table it has not seen.
+    fn write_sidecar(
+        &self,
+        rows: &[Vec<Cell>],
+        wall_s: f64,
+        backend: &dyn crate::backend::Backend,
+    ) -> anyhow::Result<()> {
+        use crate::output::sidecar::{self, Sidecar};
+        let p = &self.problem;
+        let n = rows.len() as u64;
+        let ok_col = p.header().iter().position(|h| h == "status");
+        let ok = rows
+            .iter()
+            .filter(|r| ok_col.is_some_and(|k| matches!(&r[k], Cell::Text(t) if t == "ok")))
+            .count() as u64;
+        let seal = sidecar::seal(&self.out, n)?;
+        let sc = Sidecar {
+            tool: "cradle".into(),
+            version: env!("CARGO_PKG_VERSION").into(),
+            git_revision: sidecar::GIT_REVISION.into(),
+            command: self.command.clone(),
+            sweep_file: p.origin.clone(),
+            sweep: serde_json::json!({
+                "optimize": {
+                    "objective": p.objective.0,
+                    "direction": if p.objective.1 { "maximize" } else { "minimize" },
+                    "variables": p.variables.iter().map(|v| v.name.clone()).collect::<Vec<_>>(),
+                    "method": crate::choice::Choice::name(p.method),
+                    "population": p.population,
+                    "evaluations": p.generations * p.population as u64,
+                    "seed": p.seed,
+                },
+            }),
+            backend: backend.name().into(),
+            adapter: backend.adapter(),
+            solver: serde_json::json!({ "flags": sidecar::flags(&self.overrides) }),
+            ids: [0, n],
+            total_scenes: n,
+            shard: None,
+            scenes_ok: ok,
+            scenes_not_ok: n - ok,
+            wall_s,
+            scenes_per_s: n as f64 / wall_s.max(1e-9),
+            resumed_from_row: None,
+            wall_s_this_run: None,
+            stages_s: None,
+            refine: None,
+            fingerprint: self.fingerprint(),
+            merged_from: None,
+            table: Some(seal),
+        };
+        crate::output::publish::write_atomic(
+            &sidecar::path(&self.out),
+            sidecar::text(&sc)?.as_bytes(),
+        )
+    }
+}
+
+/// What a resumed run must share with the run it continues, and what an
+/// optimisation table's sidecar records: the problem as resolved, the
+/// solver flags and the version (CRC-32, hex).
+pub fn fingerprint(p: &Problem, overrides: &Overrides) -> String {
+    let text = format!(
+        "{:?}|{:?}|{:?}|{:?}|{:?}|{}|{}|{}|{:?}|{}",
+        p.scene,
+        p.variables,
+        p.objective,
+        p.constraints,
+        p.method,
+        p.population,
+        p.generations,
+        p.seed,
+        overrides,
+        env!("CARGO_PKG_VERSION")
+    );
+    format!("{:08x}", crc32fast::hash(text.as_bytes()))
 }

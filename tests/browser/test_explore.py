@@ -497,3 +497,59 @@ def test_an_exported_scene_runs_to_its_row_and_a_table_finds_its_sweep_beside_it
     mine = next(csv.DictReader(io.StringIO(out)))
     for k in ["v_0", "v_1", "v_2", "v_3", "v_4", "steps", "ejected"]:
         assert mine[k] == rows[3][k], (k, mine[k], rows[3][k])
+
+
+def test_an_optimisation_shows_its_convergence_and_opens_a_candidate(tmp_path):
+    """`cradle optimize`'s table: its sidecar names the problem file; the
+    page draws the candidates (first two variables, coloured by the
+    objective) and the convergence (best feasible objective against
+    evaluations); a candidate's scene runs again to its row; after the
+    problem file is edited, scenes are refused, naming why."""
+    problem = tmp_path / "p.toml"
+    problem.write_text(
+        "[scene]\nballs = 8\nradius = 0.005\n[scene.walls]\nright = true\n"
+        "[scene.launch]\nballs = 1\nvelocity = 1.0\n[scene.probes]\nbeads = [7]\n"
+        "[scene.stop]\nduration = 2e-3\n"
+        "[[variable]]\nname = \"radius[1..3]\"\nmin = 0.002\nmax = 0.008\nscale = \"log\"\n"
+        "[[variable]]\nname = \"young_modulus[4]\"\nchoices = [200e9, 3e9]\n"
+        "[objective]\nminimize = \"wall_right_peak_force\"\n"
+        "[[constraint]]\nexpr = \"total_mass <= 0.04\"\n"
+        "[optimizer]\npopulation = 8\nevaluations = 48\nseed = 3\n")
+    table = tmp_path / "runs.csv"
+    subprocess.run([cradle_bin(), "optimize", problem.name, "--out", table.name, "--backend", "cpu"],
+                   check=True, capture_output=True, cwd=tmp_path)
+    sidecar = json.loads((tmp_path / "runs.csv.json").read_text())
+    assert sidecar["sweep_file"] == "p.toml" and sidecar["table"]["rows"] == 48
+    assert sidecar["sweep"]["optimize"]["objective"] == "wall_right_peak_force"
+    rows = list(csv.DictReader(io.StringIO(table.read_text())))
+    feasible = [float(r["wall_right_peak_force"]) for r in rows if r["feasible"] == "true"]
+    assert feasible, "no feasible candidate: the test's problem needs another bound"
+    with serving(tmp_path, table) as url:
+        status, meta = get(url + "api/meta")
+        assert status == 200 and meta["scenes"] is True, meta
+        assert meta["optimize"]["variables"] == ["radius[1]", "radius[2]", "radius[3]", "young_modulus[4]"]
+        # Candidate 13 (generation 1, candidate 5) runs again to its row.
+        status, body = get(url + "api/scene?id=13")
+        assert status == 200, body
+        assert all(rows[13][k] == v for k, v in body["outcome"]), (body["outcome"], rows[13])
+        with opened(url) as (page, errors):
+            conv = page.get_by_test_id("convergence")
+            assert conv.get_attribute("data-evaluations") == "48"
+            assert float(conv.get_attribute("data-best")) == min(feasible)
+            cv = page.get_by_test_id("phase-map")
+            assert cv.get_attribute("data-points") == "48"
+            px, py, want = page.evaluate("pts")[20]
+            box = cv.bounding_box()
+            page.mouse.click(box["x"] + px, box["y"] + py)
+            details = page.get_by_test_id("scene-details")
+            page.wait_for_function("document.querySelector('[data-testid=scene-details]').dataset.sceneId !== ''")
+            near = min(page.evaluate("pts"), key=lambda q: (q[0] - px) ** 2 + (q[1] - py) ** 2)[2]
+            assert details.get_attribute("data-scene-id") == str(int(near))
+            page.get_by_test_id("spacetime-image").wait_for(timeout=20_000)
+        assert not errors, errors
+    problem.write_text(problem.read_text().replace("seed = 3", "seed = 4"))
+    with serving(tmp_path, table) as url:
+        status, meta = get(url + "api/meta")
+        assert meta["scenes"] is False and "changed since this table was made" in meta["scenes_problem"]
+        status, body = get(url + "api/scene?id=13")
+        assert status == 404 and "changed since" in body["error"], body
