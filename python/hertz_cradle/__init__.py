@@ -112,6 +112,26 @@ def _bar(stream=None):
     return draw
 
 
+def _generations(stream=None):
+    """The default progress of an optimisation: a line per generation on
+    stderr, where a person sees it (a terminal, or a Jupyter notebook's
+    output), else None."""
+    stream = stream or sys.stderr
+    try:
+        shown = stream.isatty() or "ipykernel" in sys.modules
+    except (AttributeError, ValueError):
+        shown = False
+    if not shown:
+        return None
+
+    def line(generation: int, generations: int, evaluations: int, best: Optional[float]) -> None:
+        said = "none feasible yet" if best is None else f"{best:.6g}"
+        stream.write(f"generation {generation}/{generations}: {evaluations} evaluations, best {said}\n")
+        stream.flush()
+
+    return line
+
+
 def sweep(
     spec: Spec,
     *,
@@ -230,6 +250,8 @@ def optimize(
     threads: Optional[int] = None,
     out: Optional[Union[str, "os.PathLike[str]"]] = None,
     best: Optional[Union[str, "os.PathLike[str]"]] = None,
+    resume: bool = False,
+    progress: Union[bool, Callable[[int, int, int, Optional[float]], Any]] = True,
 ) -> Tuple[pa.Table, Optional[str]]:
     """Search for the best design (``cradle optimize``, docs/SPEC.md §10).
 
@@ -245,7 +267,20 @@ def optimize(
     outcome columns) typed as a sweep's table, and the best feasible design
     as scene TOML text (``None`` if no candidate was feasible), which
     :func:`run` and ``cradle run`` reproduce bit for bit. ``out`` and
-    ``best`` also write them to files (``out``: CSV or Parquet by the name).
+    ``best`` also write them to files (``out``: CSV or Parquet by the name,
+    with its JSON sidecar, as the command line does).
+
+    ``progress``: ``True`` prints a line per generation on stderr where
+    someone sees it (a terminal, a Jupyter notebook), as the command line
+    does; a callable is called as ``progress(generation, generations,
+    evaluations, best)`` (``best``: the best feasible objective so far, or
+    ``None``) as each generation ends; an exception it raises stops the
+    run; ``False``: nothing.
+
+    Ctrl-C (``KeyboardInterrupt``) stops the run between generations; with
+    ``out``, the finished generations are kept in ``out + ".partial"`` and
+    ``resume=True`` continues them to the table an uninterrupted run
+    writes (the same bytes).
     """
     path, text, is_json, name = _document(spec, "problem")
     with tempfile.TemporaryDirectory(prefix="hertz_cradle_") as tmp:
@@ -264,6 +299,8 @@ def optimize(
             method=method,
             model=model,
             threads=None if threads is None else int(threads),
+            resume=bool(resume),
+            progress=progress if callable(progress) else (_generations() if progress else None),
         )
         return _read_table(target, summary["columns"]), summary["best_scene"]
 

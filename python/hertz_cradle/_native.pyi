@@ -57,6 +57,8 @@ def optimize(
     method: Optional[str] = None,
     model: Optional[str] = None,
     threads: Optional[int] = None,
+    resume: bool = False,
+    progress: Optional[Callable[[int, int, int, Optional[float]], Any]] = None,
 ) -> Dict[str, Any]:
     """Run an optimisation into ``out``; a summary with ``columns`` and ``best_scene``."""
 

@@ -320,10 +320,15 @@ fn run(
 /// `text` (TOML, or JSON when `json`) named `name`, whose relative
 /// `scene = "file"` is found from `base_dir`; the evaluations written to
 /// `out` (CSV or Parquet by the name), the best design to `best`.
-/// Runs off the GIL; returns a summary with `columns` and `best_scene`.
+/// Runs off the GIL, on a thread of its own: `progress(generation,
+/// generations, evaluations, best)` is called here as each generation
+/// ends; Ctrl-C (or an exception `progress` raises) stops the run between
+/// generations, the finished ones kept in `out.partial` for `resume`.
+/// Returns a summary with `columns` and `best_scene`.
 #[pyfunction]
 #[pyo3(signature = (path, text, json, name, base_dir, out, *, best=None, backend="auto",
-    precision=None, tolerance=None, method=None, model=None, threads=None))]
+    precision=None, tolerance=None, method=None, model=None, threads=None, resume=false,
+    progress=None))]
 #[allow(clippy::too_many_arguments)]
 fn optimize(
     py: Python<'_>,
@@ -340,20 +345,96 @@ fn optimize(
     method: Option<&str>,
     model: Option<&str>,
     threads: Option<i64>,
+    resume: bool,
+    progress: Option<Py<PyAny>>,
 ) -> PyResult<Py<PyDict>> {
     let req = problem_request(
         (path, text, json, name, base_dir),
         out,
         best,
         (backend, precision, tolerance, method, model, threads),
+        resume,
     )?;
     let columns = problem_columns(&req);
-    let summary = py
-        .detach(|| {
-            std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| req.run(None, &mut |_| {})))
+    let cancel = Arc::new(AtomicBool::new(false));
+    // What the worker tells this thread (which holds the GIL): each
+    // generation's report, then that it ended. With a `progress`, the
+    // worker waits until the report is told before it starts the next
+    // generation, so that an exception `progress` raises stops the run
+    // right after the generation it was told of.
+    #[derive(Default)]
+    struct Shared {
+        report: Option<(u64, u64, u64, Option<f64>)>,
+        /// The last report was told to `progress`.
+        told: bool,
+        done: bool,
+    }
+    let shared = Arc::new((Mutex::new(Shared::default()), Condvar::new()));
+    let wait_for_tell = progress.is_some();
+    let worker = {
+        let (cancel, shared) = (cancel.clone(), shared.clone());
+        std::thread::spawn(move || {
+            let (m, cv) = &*shared;
+            let r = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+                req.run(Some(cancel.clone()), &mut |r| {
+                    let mut g = m.lock().unwrap_or_else(|e| e.into_inner());
+                    g.report = Some((r.generation + 1, r.generations, r.evaluations, r.best));
+                    g.told = false;
+                    cv.notify_all();
+                    while wait_for_tell && !g.told && !cancel.load(Ordering::SeqCst) {
+                        g = cv.wait(g).unwrap_or_else(|e| e.into_inner());
+                    }
+                })
+            }));
+            m.lock().unwrap_or_else(|e| e.into_inner()).done = true;
+            cv.notify_all();
+            r
         })
-        .map_err(|_| PyRuntimeError::new_err("the optimisation panicked"))?
-        .map_err(to_py)?;
+    };
+    let mut interrupted: Option<PyErr> = None;
+    loop {
+        let (m, cv) = &*shared;
+        let (report, done) = py.detach(|| {
+            let g = m.lock().unwrap_or_else(|e| e.into_inner());
+            let (mut g, _) = cv
+                .wait_timeout_while(g, Duration::from_millis(50), |s| {
+                    !s.done && s.report.is_none()
+                })
+                .unwrap_or_else(|e| e.into_inner());
+            (g.report.take(), g.done)
+        });
+        if let (Some(r), Some(cb)) = (report, progress.as_ref()) {
+            if interrupted.is_none() {
+                if let Err(e) = cb.call1(py, r) {
+                    cancel.store(true, Ordering::SeqCst);
+                    interrupted = Some(e);
+                }
+            }
+        }
+        // The report is told: the worker goes on (or stops, if cancelled).
+        if report.is_some() {
+            m.lock().unwrap_or_else(|e| e.into_inner()).told = true;
+        }
+        cv.notify_all();
+        if done {
+            break;
+        }
+        if interrupted.is_none() {
+            if let Err(e) = py.check_signals() {
+                cancel.store(true, Ordering::SeqCst);
+                interrupted = Some(e);
+                cv.notify_all();
+            }
+        }
+    }
+    let result = py.detach(|| worker.join());
+    if let Some(e) = interrupted {
+        return Err(e);
+    }
+    let summary = match result {
+        Ok(Ok(r)) => r.map_err(to_py)?,
+        _ => return Err(PyRuntimeError::new_err("the optimisation panicked")),
+    };
     let d = PyDict::new(py);
     d.set_item("columns", columns)?;
     d.set_item("evaluations", summary.evaluations)?;
@@ -386,6 +467,7 @@ fn problem_request(
         Option<&str>,
         Option<i64>,
     ),
+    resume: bool,
 ) -> PyResult<hertz_cradle::optimize::request::OptimizeRequest> {
     use hertz_cradle::optimize::request::{OptimizeRequest, OptimizeSettings};
     use hertz_cradle::optimize::Problem;
@@ -410,7 +492,7 @@ fn problem_request(
         backend: BackendChoice::parse_flag("--backend", backend).map_err(input)?,
         threads,
         solver: solver(precision, tolerance, method, model)?,
-        resume: false,
+        resume,
         command: vec![
             "python".to_string(),
             "hertz_cradle.optimize".to_string(),
@@ -469,6 +551,7 @@ fn evaluate(
         out,
         None,
         (backend, precision, tolerance, method, model, threads),
+        false,
     )?;
     let parsed: Vec<serde_json::Value> = serde_json::from_str(designs)
         .map_err(|e| PyValueError::new_err(format!("designs: {e}")))?;

@@ -337,6 +337,85 @@ def test_optimize_writes_the_clis_bytes_and_its_best_scene_runs_again(tmp_path):
         hc.optimize({**problem, "objective": {"maximize": "v_9"}}, backend="cpu")
 
 
+def test_optimize_reports_each_generation_and_resumes_to_the_same_bytes(tmp_path):
+    """`progress` is told each generation as it ends; an exception it
+    raises stops the run between generations (as Ctrl-C does), the finished
+    ones kept in out.partial; `resume=True` ends with the bytes of a run
+    never stopped."""
+    problem = {
+        "scene": {"balls": 3, "velocity": [1.0, 0, 0]},
+        "variable": [{"name": "mass[1..2]", "min": 0.01, "max": 1.0, "scale": "log"}],
+        "objective": {"maximize": "v_2"},
+        "optimizer": {"population": 6, "evaluations": 60, "seed": 5},
+    }
+    seen = []
+    hc.optimize(problem, backend="cpu", out=tmp_path / "whole.csv",
+                progress=lambda *a: seen.append(a))
+    assert [s[0] for s in seen][-1] == 10 and all(s[1] == 10 for s in seen)
+    assert seen[-1][2] == 60 and seen[-1][3] is not None
+    assert json.loads((tmp_path / "whole.csv.json").read_text())["table"]["rows"] == 60
+
+    class Stop(Exception):
+        pass
+
+    def stop_at_3(generation, generations, evaluations, best):
+        if generation >= 3:
+            raise Stop()
+
+    cut = tmp_path / "cut.csv"
+    with pytest.raises(Stop):
+        hc.optimize(problem, backend="cpu", out=cut, progress=stop_at_3)
+    partial = Path(str(cut) + ".partial")
+    assert partial.exists() and not cut.exists()
+    kept = len(partial.read_text().splitlines()) - 2
+    assert kept % 6 == 0 and 18 <= kept < 60, kept
+    hc.optimize(problem, backend="cpu", out=cut, resume=True, progress=False)
+    assert cut.read_bytes() == (tmp_path / "whole.csv").read_bytes()
+    assert not partial.exists()
+
+
+def test_ctrl_c_stops_an_optimisation_between_generations(tmp_path):
+    """SIGINT while an optimisation runs: KeyboardInterrupt, the finished
+    generations kept whole in out.partial; resume finishes with the bytes
+    of a run never stopped."""
+    problem = tmp_path / "p.toml"
+    problem.write_text(
+        '[scene]\nballs = 3\nvelocity = [1.0, 0, 0]\n'
+        '[[variable]]\nname = "mass[1..2]"\nmin = 0.01\nmax = 1.0\nscale = "log"\n'
+        '[objective]\nmaximize = "v_2"\n'
+        '[optimizer]\npopulation = 6\nevaluations = 600\nseed = 7\n'
+    )
+    out = tmp_path / "runs.csv"
+    # Each generation waits a little in `progress` (told before the next
+    # one starts): the signal comes after the first, mid-run.
+    script = textwrap.dedent(
+        f"""\
+        import sys, time, hertz_cradle as hc
+        def slow(g, *rest):
+            print("generation", g, flush=True)
+            time.sleep(0.05)
+        try:
+            hc.optimize({str(problem)!r}, backend="cpu", out={str(out)!r}, progress=slow)
+        except KeyboardInterrupt:
+            print("interrupted", flush=True)
+            sys.exit(3)
+        print("finished", flush=True)
+        """
+    )
+    p = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE, text=True)
+    assert p.stdout.readline().startswith("generation 1")
+    p.send_signal(signal.SIGINT)
+    rest = p.stdout.read()
+    assert p.wait(timeout=60) == 3 and "interrupted" in rest, rest
+    partial = Path(str(out) + ".partial")
+    kept = len(partial.read_text().splitlines()) - 2
+    assert kept % 6 == 0 and 6 <= kept < 600, kept
+    assert not out.exists()
+    hc.optimize(str(problem), backend="cpu", out=out, resume=True, progress=False)
+    hc.optimize(str(problem), backend="cpu", out=tmp_path / "whole.csv", progress=False)
+    assert out.read_bytes() == (tmp_path / "whole.csv").read_bytes()
+
+
 def test_evaluate_runs_an_outside_optimisers_designs_as_optimize_would():
     """Ask/tell: designs asked by an optimiser of the user's own (here
     pycma's shape: a list of vectors, or dicts) run as one batch; each row is
