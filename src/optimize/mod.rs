@@ -112,6 +112,28 @@ impl Variable {
             Domain::Choices(c) => c[((u * c.len() as f64) as usize).min(c.len() - 1)].clone(),
         }
     }
+
+    /// The distance between two neighbouring values in the coordinate, for
+    /// a discrete variable (a choice: 1/k; an integer key: one unit, on a
+    /// log scale at the top of the range, where it is smallest); `None` for
+    /// a continuous one (CMA-ES keeps a discrete coordinate's step above a
+    /// share of this: [`cmaes::Cmaes::with_steps`]).
+    pub fn step(&self) -> Option<f64> {
+        match &self.domain {
+            Domain::Choices(c) => Some(1.0 / c.len() as f64),
+            Domain::Range { min, max, log } if self.param.kind == Kind::Integer => {
+                if max <= min {
+                    return None;
+                }
+                Some(if *log {
+                    (max.ln() - (max - 1.0).max(*min).ln()) / (max.ln() - min.ln())
+                } else {
+                    1.0 / (max - min)
+                })
+            }
+            Domain::Range { .. } => None,
+        }
+    }
 }
 
 /// What `variables` vary: their keys, and the fewest and most balls a
@@ -921,7 +943,8 @@ pub fn run(
     let n = p.variables.len();
     let lambda = p.population;
     let start = p.base_coordinates();
-    let mut es = cmaes::Cmaes::new(start.clone(), 0.3, lambda, p.seed);
+    let steps: Vec<Option<f64>> = p.variables.iter().map(Variable::step).collect();
+    let mut es = cmaes::Cmaes::new(start.clone(), 0.3, lambda, p.seed).with_steps(&steps);
     let sign = if p.objective.1 { -1.0 } else { 1.0 };
     let judge = Judge::new(p);
     let replayed = (earlier.len() / lambda) as u64;
