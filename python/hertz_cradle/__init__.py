@@ -88,16 +88,20 @@ def _read_table(path: str, columns: List[Tuple[str, str]]) -> pa.Table:
     return table.cast(pa.schema(fields))
 
 
+def _seen(stream) -> bool:
+    """Whether a person sees `stream`: a terminal, or a Jupyter notebook's
+    output."""
+    try:
+        return stream.isatty() or "ipykernel" in sys.modules
+    except (AttributeError, ValueError):
+        return False
+
+
 def _bar(stream=None):
     """The default progress: a bar redrawn on one line of stderr, where a
-    person sees it (a terminal, or a Jupyter notebook's output), else
-    None."""
+    person sees it, else None."""
     stream = stream or sys.stderr
-    try:
-        shown = stream.isatty() or "ipykernel" in sys.modules
-    except (AttributeError, ValueError):
-        shown = False
-    if not shown:
+    if not _seen(stream):
         return None
     start = time.monotonic()
 
@@ -114,14 +118,9 @@ def _bar(stream=None):
 
 def _generations(stream=None):
     """The default progress of an optimisation: a line per generation on
-    stderr, where a person sees it (a terminal, or a Jupyter notebook's
-    output), else None."""
+    stderr, where a person sees it, else None."""
     stream = stream or sys.stderr
-    try:
-        shown = stream.isatty() or "ipykernel" in sys.modules
-    except (AttributeError, ValueError):
-        shown = False
-    if not shown:
+    if not _seen(stream):
         return None
 
     def line(generation: int, generations: int, evaluations: int, best: Optional[float]) -> None:

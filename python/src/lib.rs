@@ -188,10 +188,7 @@ fn sweep(
             return;
         }
         told = Some(now);
-        if let Err(e) = cb.call1(py, now) {
-            cancel.store(true, Ordering::SeqCst);
-            *interrupted = Some(e);
-        }
+        stop_on(cb.call1(py, now).map(drop), &cancel, interrupted);
     };
     loop {
         let done = py.detach(|| {
@@ -207,10 +204,7 @@ fn sweep(
             break;
         }
         if interrupted.is_none() {
-            if let Err(e) = py.check_signals() {
-                cancel.store(true, Ordering::SeqCst);
-                interrupted = Some(e);
-            }
+            stop_on(py.check_signals(), &cancel, &mut interrupted);
         }
     }
     let result = py.detach(|| worker.join());
@@ -229,6 +223,21 @@ fn sweep(
     d.set_item("already_complete", summary.already_complete)?;
     d.set_item("columns", columns)?;
     Ok(d.unbind())
+}
+
+/// A run's first Python exception (Ctrl-C's KeyboardInterrupt, one a
+/// `progress` callback raised) stops it: `cancel` set, the exception kept
+/// to raise once the worker has stopped; later ones are dropped. Whether
+/// this one stopped it.
+fn stop_on(r: PyResult<()>, cancel: &AtomicBool, interrupted: &mut Option<PyErr>) -> bool {
+    match r {
+        Err(e) if interrupted.is_none() => {
+            cancel.store(true, Ordering::SeqCst);
+            *interrupted = Some(e);
+            true
+        }
+        _ => false,
+    }
 }
 
 /// A row field as a Python value (missing → None).
@@ -405,10 +414,7 @@ fn optimize(
         });
         if let (Some(r), Some(cb)) = (report, progress.as_ref()) {
             if interrupted.is_none() {
-                if let Err(e) = cb.call1(py, r) {
-                    cancel.store(true, Ordering::SeqCst);
-                    interrupted = Some(e);
-                }
+                stop_on(cb.call1(py, r).map(drop), &cancel, &mut interrupted);
             }
         }
         // The report is told: the worker goes on (or stops, if cancelled).
@@ -419,12 +425,8 @@ fn optimize(
         if done {
             break;
         }
-        if interrupted.is_none() {
-            if let Err(e) = py.check_signals() {
-                cancel.store(true, Ordering::SeqCst);
-                interrupted = Some(e);
-                cv.notify_all();
-            }
+        if interrupted.is_none() && stop_on(py.check_signals(), &cancel, &mut interrupted) {
+            cv.notify_all();
         }
     }
     let result = py.detach(|| worker.join());

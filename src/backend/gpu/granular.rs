@@ -27,9 +27,7 @@ use crate::engine::real::{Df64, Real};
 use crate::engine::Status;
 use crate::scene::Precision;
 
-/// Invocations per workgroup (a chain's beads are strided over them) on a
-/// software adapter, and the fewest on a hardware one.
-pub const CHAIN_WG: u32 = 64;
+pub use super::profile::CHAIN_WG;
 /// The most invocations per workgroup [`chain_wg`] gives a chain.
 const CHAIN_WG_MOST: u32 = 256;
 

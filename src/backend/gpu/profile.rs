@@ -23,6 +23,11 @@ const TIMED_ROUNDS: std::ops::RangeInclusive<u32> = 16..=65_536;
 /// watchdogs and for rows to flow.
 const ROUND_S: (f64, f64) = (0.002, 0.016);
 
+/// Invocations per workgroup of the chain kernel (a chain's beads are
+/// strided over them) on a software adapter, and the fewest on a hardware
+/// one (`granular::chain_wg`).
+pub const CHAIN_WG: u32 = 64;
+
 /// How the backend uses a device: scenes per call, calls at once, workers,
 /// pacing. A hardware GPU gets [`Profile::HARDWARE`], a software adapter
 /// [`Profile::SOFTWARE`]; `CRADLE_GPU_PROFILE=hardware|software` picks one
@@ -113,7 +118,7 @@ impl Profile {
         wide_above: None,
         chain_local: true,
         // lavapipe runs every invocation, idle or not, on the same cores.
-        chain_wg: Some(super::granular::CHAIN_WG),
+        chain_wg: Some(CHAIN_WG),
     };
 
     /// `CRADLE_GPU_PROFILE`'s value, if set: `hardware` or `software`, then
