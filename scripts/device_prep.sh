@@ -27,6 +27,8 @@ fi
 cargo build --release
 cargo build --release --example chain_contract
 cp target/release/cradle .gpu/ && strip .gpu/cradle
+# What the binary was built from (gpu_check.sh prints it).
+{ git rev-parse --short HEAD; [ -z "$(git status --porcelain --untracked-files=no)" ] || echo "+ uncommitted changes"; } | paste -sd' ' > .gpu/COMMIT
 cp target/release/examples/chain_contract .gpu/ && strip .gpu/chain_contract
 cp scripts/gpu/bench.sh scripts/gpu/compare.py examples/stress.toml scripts/gpu_tune.sh scripts/gpu_check.sh .gpu/
 cp scripts/peers/numba_cuda_grid.py .gpu/

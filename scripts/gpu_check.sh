@@ -71,7 +71,9 @@ log() { echo "$*" | tee -a "$w/check.log" "$out/check.log"; }
 { nvidia-smi; nvidia-smi -q -d CLOCK,PERFORMANCE,POWER; } >"$w/nvidia-smi.txt" 2>&1
 nvidia-smi -L 2>/dev/null | tee -a "$w/check.log"
 log "cores: $(nproc); $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2)"
-log "commit: $(cd "$root" && git rev-parse --short HEAD 2>/dev/null || echo unknown)"
+# The commit the binary was built from, as device_prep.sh recorded it
+# (with "+ uncommitted changes" when the tree was not clean then).
+log "commit: $(cat "$here/COMMIT" 2>/dev/null || (cd "$root" && git rev-parse --short HEAD 2>/dev/null) || echo unknown)"
 
 # The adapter first: a tiny sweep on --backend gpu, its sidecar's adapter.
 timeout -k 5 60 ./cradle sweep grid100.toml --out "$w/probe.csv" --backend gpu >"$w/probe.log" 2>&1
