@@ -42,7 +42,7 @@ impl Default for OptimizeSettings {
 pub const PARTIAL: &str = ".partial";
 
 /// What an output of an optimisation may not be beside: its partial file,
-/// the temporary file of the final write, the lock.
+/// the temporary file of the final write, the lock, its sidecar.
 const COMPANIONS: &[&str] = &[PARTIAL, crate::output::publish::TMP, ".lock", ".json"];
 
 /// A checked optimisation: nothing has run yet.
@@ -275,12 +275,15 @@ impl OptimizeRequest {
             .prepare(&p.model.needs(&p.base, &p.varied(), &self.solver))
             .map_err(Error::from)?;
         let (b, o): (&dyn crate::backend::Backend, &Overrides) = (&*backend, &self.overrides);
+        let t0 = std::time::Instant::now();
         let work = || super::evaluate(p, b, o, designs);
         let rows = crate::request::pooled(self.threads, work)
             .map_err(Error::Runtime)?
             .map_err(Error::from)?;
         write_alone(&self.out, |w| p.write_table(&rows, self.format, w)).map_err(Error::from)?;
-        self.write_sidecar(&rows, 0.0, b).map_err(Error::Runtime)?;
+        let wall_s = t0.elapsed().as_secs_f64();
+        self.write_sidecar(&rows, wall_s, b)
+            .map_err(Error::Runtime)?;
         Ok(rows)
     }
 

@@ -191,6 +191,30 @@ pub fn local_beads(n: usize, wg: u32, limit: u64) -> u32 {
     }
 }
 
+/// `run` on the jobs of each `key` together (the keys in ascending order),
+/// their outcomes put back in the jobs' order.
+fn grouped<K: Ord + Copy>(
+    jobs: &[&ChainJob],
+    key: impl Fn(&ChainJob) -> K,
+    mut run: impl FnMut(K, &[&ChainJob]) -> Result<Vec<ChainOutcome>>,
+) -> Result<Vec<ChainOutcome>> {
+    let keys: Vec<K> = jobs.iter().map(|j| key(j)).collect();
+    let mut kinds = keys.clone();
+    kinds.sort_unstable();
+    kinds.dedup();
+    let mut out: Vec<Option<ChainOutcome>> = vec![None; jobs.len()];
+    for kind in kinds {
+        let (at, these): (Vec<usize>, Vec<&ChainJob>) = (0..jobs.len())
+            .filter(|&k| keys[k] == kind)
+            .map(|k| (k, jobs[k]))
+            .unzip();
+        for (k, o) in at.into_iter().zip(run(kind, &these)?) {
+            out[k] = Some(o);
+        }
+    }
+    Ok(out.into_iter().map(|o| o.expect("every job ran")).collect())
+}
+
 /// The chain shader in `precision` (f64 or df64): its prelude (the real
 /// type and its arithmetic, constants, the bisection and the sine written
 /// out) and shaders/granular/chains.wgsl, for the pipeline `kernel`.
@@ -679,49 +703,26 @@ impl Gpu {
     /// together, in parts as large as the device's workgroup count and
     /// storage binding allow.
     pub fn run_chain_jobs(&self, jobs: &[&ChainJob]) -> Result<Vec<ChainOutcome>> {
-        let mut out: Vec<Option<ChainOutcome>> = vec![None; jobs.len()];
-        for precision in [Precision::F64, Precision::Df64, Precision::F32] {
-            let (at, these): (Vec<usize>, Vec<&ChainJob>) = jobs
-                .iter()
-                .enumerate()
-                .filter(|(_, j)| j.plan.precision == precision)
-                .map(|(i, j)| (i, *j))
-                .unzip();
-            if these.is_empty() {
-                continue;
-            }
-            let done = match precision {
-                Precision::F64 => self.run_chain_jobs_in::<f64>(&these)?,
-                Precision::Df64 => self.run_chain_jobs_in::<Df64>(&these)?,
+        grouped(
+            jobs,
+            |j| j.plan.precision,
+            |precision, these| match precision {
+                Precision::F64 => self.run_chain_jobs_in::<f64>(these),
+                Precision::Df64 => self.run_chain_jobs_in::<Df64>(these),
                 // Refused there (chain_pipe), never run in another precision.
-                Precision::F32 => self.run_chain_jobs_in::<f32>(&these)?,
-            };
-            for (i, o) in at.into_iter().zip(done) {
-                out[i] = Some(o);
-            }
-        }
-        Ok(out.into_iter().map(|o| o.expect("every job ran")).collect())
+                Precision::F32 => self.run_chain_jobs_in::<f32>(these),
+            },
+        )
     }
 
     /// [`Gpu::run_chain_jobs`] of jobs in precision `R`: those of each
     /// pipeline ([`Gpu::chain_kernel`]) together, in order.
     fn run_chain_jobs_in<R: Real>(&self, jobs: &[&ChainJob]) -> Result<Vec<ChainOutcome>> {
-        let locals: Vec<ChainKernel> = jobs.iter().map(|j| self.chain_kernel(j.beads.n)).collect();
-        let mut kinds = locals.clone();
-        kinds.sort_unstable();
-        kinds.dedup();
-        let mut out: Vec<Option<ChainOutcome>> = vec![None; jobs.len()];
-        for local in kinds {
-            let (at, these): (Vec<usize>, Vec<&ChainJob>) = (0..jobs.len())
-                .filter(|&k| locals[k] == local)
-                .map(|k| (k, jobs[k]))
-                .unzip();
-            let done = self.run_chain_jobs_with::<R>(&these, local)?;
-            for (k, o) in at.into_iter().zip(done) {
-                out[k] = Some(o);
-            }
-        }
-        Ok(out.into_iter().map(|o| o.expect("every job ran")).collect())
+        grouped(
+            jobs,
+            |j| self.chain_kernel(j.beads.n),
+            |kernel, these| self.run_chain_jobs_with::<R>(these, kernel),
+        )
     }
 
     /// Jobs in precision `R` on the pipeline `kernel`, in parts as large as
