@@ -458,6 +458,33 @@ fn wait_for(jobs: &[&str]) {
     }
 }
 
+/// Submit a batch script (`sbatch --parsable`, `extra` first), wait for it
+/// as `wait_for` does (every 300 ms: `sbatch --wait` polls every 2 s and
+/// more), and return whether it completed (scontrol's JobState).
+fn sbatch_and_wait(extra: &[&str], script: &str) -> bool {
+    let sub = Std::new("sbatch")
+        .arg("--parsable")
+        .args(extra)
+        .arg(script)
+        .output()
+        .unwrap();
+    assert!(
+        sub.status.success(),
+        "sbatch {script}: {}",
+        String::from_utf8_lossy(&sub.stderr)
+    );
+    let id = String::from_utf8(sub.stdout).unwrap();
+    let id = id.trim().split(';').next().unwrap().to_string();
+    wait_for(&[&id]);
+    let show = Std::new("scontrol")
+        .args(["-o", "show", "job", &id])
+        .output()
+        .unwrap();
+    let show = String::from_utf8_lossy(&show.stdout);
+    assert!(show.contains("JobState="), "scontrol show job {id}: {show}");
+    show.contains("JobState=COMPLETED")
+}
+
 #[test]
 fn slurm_job_array_merges_to_the_unsharded_run() {
     if !slurm_installed() {
@@ -524,29 +551,14 @@ fn slurm_job_array_merges_to_the_unsharded_run() {
     // then the merge again, gives the same bytes.
     fs::remove_file(d.join("job/parts/shard-2-of-4.csv")).unwrap();
     fs::remove_file(p("merged.csv")).unwrap();
-    let m = Std::new("sbatch")
-        .args(["--parsable", "--wait", &p("job/merge.sbatch")])
-        .output()
-        .unwrap();
-    assert!(!m.status.success());
+    assert!(!sbatch_and_wait(&[], &p("job/merge.sbatch")));
     let log = fs::read_to_string(d.join("job/logs/merge.out")).unwrap();
     assert!(
         log.contains("shards not complete: 2") && log.contains("sbatch --array=K"),
         "{log}"
     );
-    for script in [["--array=2", "job/array.sbatch"], ["", "job/merge.sbatch"]] {
-        let mut c = Std::new("sbatch");
-        c.args(["--parsable", "--wait"]);
-        if !script[0].is_empty() {
-            c.arg(script[0]);
-        }
-        let r = c.arg(p(script[1])).output().unwrap();
-        assert!(
-            r.status.success(),
-            "{script:?}: {}",
-            String::from_utf8_lossy(&r.stderr)
-        );
-    }
+    assert!(sbatch_and_wait(&["--array=2"], &p("job/array.sbatch")));
+    assert!(sbatch_and_wait(&[], &p("job/merge.sbatch")));
     assert_eq!(
         fs::read(p("full.csv")).unwrap(),
         fs::read(p("merged.csv")).unwrap()
