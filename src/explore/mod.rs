@@ -105,16 +105,13 @@ fn err(code: StatusCode, msg: impl Into<String>) -> Response {
     (code, Json(json!({ "error": msg.into() }))).into_response()
 }
 
-fn load(path: &Path) -> Result<Data> {
-    // A refined table filled to its grid, Parquet as the CSV's text.
-    let bad = |what: String| crate::InputError::Data {
-        path: path.to_path_buf(),
-        what,
-    };
+/// A table's columns (a refined table filled to its grid, Parquet as the
+/// CSV's text): numbers where every cell parses, else categories.
+fn table(path: &Path) -> Result<(Vec<String>, Vec<Col>, usize)> {
     let mut r = csv::Reader::from_reader(crate::sweep::fill::full_csv(path)?);
     let header: Vec<String> = r
         .headers()
-        .map_err(|e| bad(format!("not a readable table ({e})")))?
+        .map_err(|e| bad(path, format!("not a readable table ({e})")))?
         .iter()
         .map(str::to_string)
         .collect();
@@ -124,7 +121,7 @@ fn load(path: &Path) -> Result<Data> {
     let mut numeric = vec![true; n];
     let mut rows = 0;
     for rec in r.records() {
-        let rec = rec.map_err(|e| bad(format!("not a readable table ({e})")))?;
+        let rec = rec.map_err(|e| bad(path, format!("not a readable table ({e})")))?;
         for (k, f) in rec.iter().enumerate().take(n) {
             if numeric[k] {
                 match f.trim() {
@@ -143,9 +140,11 @@ fn load(path: &Path) -> Result<Data> {
         rows += 1;
     }
     if rows == 0 {
-        return Err(
-            bad("has no rows (an empty file, a header alone, or not a table)".into()).into(),
-        );
+        return Err(bad(
+            path,
+            "has no rows (an empty file, a header alone, or not a table)".into(),
+        )
+        .into());
     }
     let cols: Vec<Col> = (0..n)
         .map(|k| {
@@ -167,6 +166,49 @@ fn load(path: &Path) -> Result<Data> {
             }
         })
         .collect();
+    Ok((header, cols, rows))
+}
+
+/// Each id's row; without an `id` column, the row's index.
+fn rows_by_id(
+    path: &Path,
+    header: &[String],
+    cols: &[Col],
+    rows: usize,
+) -> Result<HashMap<u64, usize>> {
+    Ok(match header.iter().position(|h| h == "id") {
+        Some(k) => {
+            let mut m = HashMap::with_capacity(rows);
+            for (r, t) in ids_of(&cols[k], rows).into_iter().enumerate() {
+                match t {
+                    Some(id) if m.insert(id, r).is_none() => {}
+                    _ => {
+                        return Err(bad(
+                            path,
+                            format!(
+                            "row {} has no id, or one an earlier row has: not one sweep's table",
+                            r + 1
+                        ),
+                        )
+                        .into())
+                    }
+                }
+            }
+            m
+        }
+        None => (0..rows).map(|r| (r as u64, r)).collect(),
+    })
+}
+
+fn bad(path: &Path, what: String) -> crate::InputError {
+    crate::InputError::Data {
+        path: path.to_path_buf(),
+        what,
+    }
+}
+
+fn load(path: &Path) -> Result<Data> {
+    let (header, cols, rows) = table(path)?;
     // The grid, from the sidecar's sweep.
     let sc = crate::output::sidecar::read(path).ok().flatten();
     let mut axes = vec![];
@@ -192,25 +234,7 @@ fn load(path: &Path) -> Result<Data> {
             (s, None, why)
         }
     };
-    let row_of: HashMap<u64, usize> = match header.iter().position(|h| h == "id") {
-        Some(k) => {
-            let mut m = HashMap::with_capacity(rows);
-            for (r, t) in ids_of(&cols[k], rows).into_iter().enumerate() {
-                match t {
-                    Some(id) if m.insert(id, r).is_none() => {}
-                    _ => {
-                        return Err(bad(format!(
-                            "row {} has no id, or one an earlier row has: not one sweep's table",
-                            r + 1
-                        ))
-                        .into())
-                    }
-                }
-            }
-            m
-        }
-        None => (0..rows).map(|r| (r as u64, r)).collect(),
-    };
+    let row_of = rows_by_id(path, &header, &cols, rows)?;
     let overrides = sc.as_ref().map(|s| s.overrides()).unwrap_or_default();
     Ok(Data {
         row_of,

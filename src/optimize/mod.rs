@@ -312,232 +312,19 @@ impl Problem {
     /// names is looked for).
     pub fn parse(src: &Source, dir: &Path) -> Result<Problem, InputError> {
         let raw: RawProblem = src.parse_toml()?;
-        let origin = src.name.clone();
-        let invalid = |span: std::ops::Range<usize>, key: &str, value: String, allowed: String| {
-            InputError::Invalid {
-                origin: origin.clone(),
-                line: Some(src.line(span.start)),
-                key: key.to_string(),
-                value,
-                allowed,
-            }
-        };
-        let missing = |key: &str, help: &str| InputError::Missing {
-            origin: origin.clone(),
-            line: None,
-            key: key.to_string(),
-            help: help.to_string(),
-        };
+        let at = Errors { src };
         let mut inputs = vec![];
         let scene = crate::sweep::base_scene(src, raw.scene.as_ref(), dir, &mut inputs)?;
         let base = scene.validate()?;
-        // Variables, ranges expanded.
-        let mut variables: Vec<Variable> = vec![];
-        for v in raw.variable.unwrap_or_default() {
-            let span = v.span();
-            let v = v.into_inner();
-            let bad = |value: String, allowed: &str| {
-                invalid(span.clone(), "variable", value, allowed.to_string())
-            };
-            let domain = match (&v.choices, v.min, v.max) {
-                (Some(c), None, None) if v.scale.is_none() => {
-                    if c.is_empty() {
-                        return Err(bad(v.name.clone(), "`choices` with at least one value"));
-                    }
-                    Domain::Choices(
-                        c.iter()
-                            .map(|x| match x {
-                                toml::Value::Float(f) => Ok(Value::Num(*f)),
-                                toml::Value::Integer(i) => Ok(Value::Num(*i as f64)),
-                                toml::Value::String(s) => Ok(Value::Text(s.clone())),
-                                other => Err(bad(
-                                    other.to_string(),
-                                    "choices that are numbers or strings",
-                                )),
-                            })
-                            .collect::<Result<_, _>>()?,
-                    )
-                }
-                (None, Some(min), Some(max)) => {
-                    let log = match v.scale.as_deref() {
-                        None | Some("linear") => false,
-                        Some("log") => true,
-                        Some(other) => {
-                            return Err(bad(
-                                format!("scale = {other:?}"),
-                                "scale = \"linear\" (the default) or \"log\"",
-                            ))
-                        }
-                    };
-                    if !(min.is_finite() && max.is_finite() && min < max) || (log && min <= 0.0) {
-                        return Err(bad(
-                            format!("{} in [{min}, {max}]", v.name),
-                            if log {
-                                "finite 0 < min < max (a log scale)"
-                            } else {
-                                "finite min < max"
-                            },
-                        ));
-                    }
-                    Domain::Range { min, max, log }
-                }
-                _ => {
-                    return Err(bad(
-                        v.name.clone(),
-                        "either `min` and `max` (and `scale`) or `choices`, not both",
-                    ))
-                }
-            };
-            for name in expand(&v.name).map_err(|e| bad(v.name.clone(), &e))? {
-                let param = Param::parse(&name).map_err(|e| bad(name.clone(), &e))?;
-                if matches!(domain, Domain::Range { .. }) && param.kind == Kind::Glue {
-                    return Err(bad(name, "`choices` for glue (a pattern of `=` and `-`)"));
-                }
-                if variables.iter().any(|w| w.param.overlaps(&param)) {
-                    return Err(bad(name, "variables that set different quantities (this one sets one another variable sets)"));
-                }
-                let var = Variable {
-                    name,
-                    param,
-                    domain: domain.clone(),
-                };
-                // Every value alone (the others at the base scene's) must
-                // make a valid scene of the base scene's kind.
-                let ends: Vec<Value> = match &var.domain {
-                    Domain::Range { .. } => vec![var.value(0.0), var.value(1.0)],
-                    Domain::Choices(c) => c.clone(),
-                };
-                for x in ends {
-                    let mut s = scene.clone();
-                    axis::apply(&mut s, &base, &var.param, &x);
-                    let why = match s.validate() {
-                        Ok(s) if crate::model::kind(&s) == crate::model::kind(&base) => continue,
-                        Ok(_) => crate::model::mixed_sweep(&base),
-                        Err(e) => format!("a value that makes a valid scene ({e})"),
-                    };
-                    return Err(bad(format!("{} = {x}", var.name), &why));
-                }
-                variables.push(var);
-            }
-        }
-        if variables.is_empty() {
-            return Err(missing(
-                "variable",
-                "at least one [[variable]] table: name = \"<key>\" with min/max or choices",
-            ));
-        }
-        if variables.len() > MAX_VARIABLES {
-            return Err(missing(
-                "variable",
-                &format!(
-                    "at most {MAX_VARIABLES} variables ({} given)",
-                    variables.len()
-                ),
-            ));
-        }
+        let variables = variables(&at, raw.variable.unwrap_or_default(), &scene, &base)?;
         let model = crate::model::of(&base, &varied(&variables));
         let columns = model.header();
-        let known = |c: &str| columns.iter().any(|h| h == c) || c == "total_mass";
-        let allowed_columns =
-            || format!("an outcome column ({}) or total_mass", columns.join(", "));
-        let Some(obj) = raw.objective else {
-            return Err(missing(
-                "objective",
-                "an [objective] table: minimize = \"<column>\" or maximize = \"<column>\"",
-            ));
-        };
-        let span = obj.span();
-        let obj = obj.into_inner();
-        let objective = match (obj.minimize, obj.maximize) {
-            (Some(c), None) => (c, false),
-            (None, Some(c)) => (c, true),
-            _ => {
-                return Err(invalid(
-                    span,
-                    "objective",
-                    "minimize and maximize".into(),
-                    "one of `minimize` or `maximize`".into(),
-                ))
-            }
-        };
-        if !known(&objective.0) || objective.0 == "status" {
-            return Err(invalid(span, "objective", objective.0, allowed_columns()));
-        }
-        let mut constraints = vec![];
-        for c in raw.constraint.unwrap_or_default() {
-            let span = c.span();
-            let expr = c.into_inner().expr;
-            let parsed = parse_constraint(&expr);
-            match parsed {
-                Some(c) if known(&c.lhs) => constraints.push(c),
-                Some(c) => {
-                    return Err(invalid(
-                        span,
-                        "constraint.expr",
-                        expr.clone(),
-                        format!("`{}`: {}", c.lhs, allowed_columns()),
-                    ))
-                }
-                None => {
-                    return Err(invalid(
-                        span,
-                        "constraint.expr",
-                        expr,
-                        "`<column> <= <number>` (or <, >=, >)".into(),
-                    ))
-                }
-            }
-        }
-        let (method, population, evaluations, seed) = match raw.optimizer {
-            None => (Method::CmaEs, None, DEFAULT_EVALUATIONS, 0),
-            Some(o) => {
-                let span = o.span();
-                let o = o.into_inner();
-                let method = match o.method.as_deref() {
-                    None => Method::CmaEs,
-                    Some(m) => Method::from_name(m).ok_or_else(|| {
-                        invalid(
-                            span.clone(),
-                            "optimizer.method",
-                            m.into(),
-                            format!("one of {}", Method::names()),
-                        )
-                    })?,
-                };
-                if let Some(p) = o.population {
-                    if !(2..=100_000).contains(&p) {
-                        return Err(invalid(
-                            span,
-                            "optimizer.population",
-                            p.to_string(),
-                            "2 ..= 100000".into(),
-                        ));
-                    }
-                }
-                let e = o.evaluations.unwrap_or(DEFAULT_EVALUATIONS);
-                if !(1..=MAX_EVALUATIONS).contains(&e) {
-                    return Err(invalid(
-                        span,
-                        "optimizer.evaluations",
-                        e.to_string(),
-                        format!("1 ..= {MAX_EVALUATIONS}"),
-                    ));
-                }
-                let seed = o.seed.unwrap_or(0);
-                if seed < 0 {
-                    return Err(invalid(
-                        span,
-                        "optimizer.seed",
-                        seed.to_string(),
-                        "a whole number ≥ 0".into(),
-                    ));
-                }
-                (method, o.population.map(|p| p as usize), e, seed as u64)
-            }
-        };
+        let objective = objective(&at, raw.objective, &columns)?;
+        let constraints = constraints(&at, raw.constraint.unwrap_or_default(), &columns)?;
+        let (method, population, evaluations, seed) = optimizer(&at, raw.optimizer)?;
         let population = population.unwrap_or_else(|| cmaes::default_population(variables.len()));
         Ok(Problem {
-            origin,
+            origin: src.name.clone(),
             inputs,
             scene,
             base,
@@ -731,6 +518,284 @@ fn expand(name: &str) -> Result<Vec<String>, String> {
         (Ok(a), Ok(b)) if a <= b => Ok((a..=b).map(|i| format!("{key}[{i}]")).collect()),
         _ => Err("a range of indices written `key[a..b]` with a ≤ b (both included)".into()),
     }
+}
+
+/// A problem file's errors, pointing at its name and line.
+struct Errors<'a> {
+    src: &'a Source,
+}
+
+impl Errors<'_> {
+    fn invalid(
+        &self,
+        span: std::ops::Range<usize>,
+        key: &str,
+        value: String,
+        allowed: String,
+    ) -> InputError {
+        InputError::Invalid {
+            origin: self.src.name.clone(),
+            line: Some(self.src.line(span.start)),
+            key: key.to_string(),
+            value,
+            allowed,
+        }
+    }
+
+    fn missing(&self, key: &str, help: &str) -> InputError {
+        InputError::Missing {
+            origin: self.src.name.clone(),
+            line: None,
+            key: key.to_string(),
+            help: help.to_string(),
+        }
+    }
+}
+
+/// The `[[variable]]` tables, ranges of indices expanded: each a key the
+/// model's sweeps take, setting a quantity no other variable sets, whose
+/// every value alone (the others at the base scene's) makes a valid scene
+/// of the base scene's kind.
+fn variables(
+    at: &Errors,
+    raw: Vec<Spanned<RawVariable>>,
+    scene: &SceneSpec,
+    base: &Scene,
+) -> Result<Vec<Variable>, InputError> {
+    let mut variables: Vec<Variable> = vec![];
+    for v in raw {
+        let span = v.span();
+        let v = v.into_inner();
+        let bad = |value: String, allowed: &str| {
+            at.invalid(span.clone(), "variable", value, allowed.to_string())
+        };
+        let domain = domain(&v).map_err(|(value, allowed)| bad(value, &allowed))?;
+        for name in expand(&v.name).map_err(|e| bad(v.name.clone(), &e))? {
+            let param = Param::parse(&name).map_err(|e| bad(name.clone(), &e))?;
+            if matches!(domain, Domain::Range { .. }) && param.kind == Kind::Glue {
+                return Err(bad(name, "`choices` for glue (a pattern of `=` and `-`)"));
+            }
+            if variables.iter().any(|w| w.param.overlaps(&param)) {
+                return Err(bad(name, "variables that set different quantities (this one sets one another variable sets)"));
+            }
+            let var = Variable {
+                name,
+                param,
+                domain: domain.clone(),
+            };
+            let ends: Vec<Value> = match &var.domain {
+                Domain::Range { .. } => vec![var.value(0.0), var.value(1.0)],
+                Domain::Choices(c) => c.clone(),
+            };
+            for x in ends {
+                let mut s = scene.clone();
+                axis::apply(&mut s, base, &var.param, &x);
+                let why = match s.validate() {
+                    Ok(s) if crate::model::kind(&s) == crate::model::kind(base) => continue,
+                    Ok(_) => crate::model::mixed_sweep(base),
+                    Err(e) => format!("a value that makes a valid scene ({e})"),
+                };
+                return Err(bad(format!("{} = {x}", var.name), &why));
+            }
+            variables.push(var);
+        }
+    }
+    if variables.is_empty() {
+        return Err(at.missing(
+            "variable",
+            "at least one [[variable]] table: name = \"<key>\" with min/max or choices",
+        ));
+    }
+    if variables.len() > MAX_VARIABLES {
+        return Err(at.missing(
+            "variable",
+            &format!(
+                "at most {MAX_VARIABLES} variables ({} given)",
+                variables.len()
+            ),
+        ));
+    }
+    Ok(variables)
+}
+
+/// One variable's domain: `min` and `max` (and `scale`), or `choices`;
+/// an error as (value, allowed).
+fn domain(v: &RawVariable) -> Result<Domain, (String, String)> {
+    let bad = |value: String, allowed: &str| (value, allowed.to_string());
+    match (&v.choices, v.min, v.max) {
+        (Some(c), None, None) if v.scale.is_none() => {
+            if c.is_empty() {
+                return Err(bad(v.name.clone(), "`choices` with at least one value"));
+            }
+            Ok(Domain::Choices(
+                c.iter()
+                    .map(|x| match x {
+                        toml::Value::Float(f) => Ok(Value::Num(*f)),
+                        toml::Value::Integer(i) => Ok(Value::Num(*i as f64)),
+                        toml::Value::String(s) => Ok(Value::Text(s.clone())),
+                        other => Err(bad(
+                            other.to_string(),
+                            "choices that are numbers or strings",
+                        )),
+                    })
+                    .collect::<Result<_, _>>()?,
+            ))
+        }
+        (None, Some(min), Some(max)) => {
+            let log = match v.scale.as_deref() {
+                None | Some("linear") => false,
+                Some("log") => true,
+                Some(other) => {
+                    return Err(bad(
+                        format!("scale = {other:?}"),
+                        "scale = \"linear\" (the default) or \"log\"",
+                    ))
+                }
+            };
+            if !(min.is_finite() && max.is_finite() && min < max) || (log && min <= 0.0) {
+                return Err(bad(
+                    format!("{} in [{min}, {max}]", v.name),
+                    if log {
+                        "finite 0 < min < max (a log scale)"
+                    } else {
+                        "finite min < max"
+                    },
+                ));
+            }
+            Ok(Domain::Range { min, max, log })
+        }
+        _ => Err(bad(
+            v.name.clone(),
+            "either `min` and `max` (and `scale`) or `choices`, not both",
+        )),
+    }
+}
+
+/// Whether `c` is a column an objective or a constraint may name.
+fn known(columns: &[String], c: &str) -> bool {
+    columns.iter().any(|h| h == c) || c == "total_mass"
+}
+
+fn allowed_columns(columns: &[String]) -> String {
+    format!("an outcome column ({}) or total_mass", columns.join(", "))
+}
+
+/// `[objective]`: the column and whether it is maximised.
+fn objective(
+    at: &Errors,
+    raw: Option<Spanned<RawObjective>>,
+    columns: &[String],
+) -> Result<(String, bool), InputError> {
+    let Some(obj) = raw else {
+        return Err(at.missing(
+            "objective",
+            "an [objective] table: minimize = \"<column>\" or maximize = \"<column>\"",
+        ));
+    };
+    let span = obj.span();
+    let obj = obj.into_inner();
+    let objective = match (obj.minimize, obj.maximize) {
+        (Some(c), None) => (c, false),
+        (None, Some(c)) => (c, true),
+        _ => {
+            return Err(at.invalid(
+                span,
+                "objective",
+                "minimize and maximize".into(),
+                "one of `minimize` or `maximize`".into(),
+            ))
+        }
+    };
+    if !known(columns, &objective.0) || objective.0 == "status" {
+        return Err(at.invalid(span, "objective", objective.0, allowed_columns(columns)));
+    }
+    Ok(objective)
+}
+
+/// The `[[constraint]]` comparisons, each of a known column.
+fn constraints(
+    at: &Errors,
+    raw: Vec<Spanned<RawConstraint>>,
+    columns: &[String],
+) -> Result<Vec<Constraint>, InputError> {
+    let mut constraints = vec![];
+    for c in raw {
+        let span = c.span();
+        let expr = c.into_inner().expr;
+        match parse_constraint(&expr) {
+            Some(c) if known(columns, &c.lhs) => constraints.push(c),
+            Some(c) => {
+                return Err(at.invalid(
+                    span,
+                    "constraint.expr",
+                    expr.clone(),
+                    format!("`{}`: {}", c.lhs, allowed_columns(columns)),
+                ))
+            }
+            None => {
+                return Err(at.invalid(
+                    span,
+                    "constraint.expr",
+                    expr,
+                    "`<column> <= <number>` (or <, >=, >)".into(),
+                ))
+            }
+        }
+    }
+    Ok(constraints)
+}
+
+/// `[optimizer]`: method, population (None: the method's default),
+/// evaluations and seed.
+fn optimizer(
+    at: &Errors,
+    raw: Option<Spanned<RawOptimizer>>,
+) -> Result<(Method, Option<usize>, i64, u64), InputError> {
+    let Some(o) = raw else {
+        return Ok((Method::CmaEs, None, DEFAULT_EVALUATIONS, 0));
+    };
+    let span = o.span();
+    let o = o.into_inner();
+    let method = match o.method.as_deref() {
+        None => Method::CmaEs,
+        Some(m) => Method::from_name(m).ok_or_else(|| {
+            at.invalid(
+                span.clone(),
+                "optimizer.method",
+                m.into(),
+                format!("one of {}", Method::names()),
+            )
+        })?,
+    };
+    if let Some(p) = o.population {
+        if !(2..=100_000).contains(&p) {
+            return Err(at.invalid(
+                span,
+                "optimizer.population",
+                p.to_string(),
+                "2 ..= 100000".into(),
+            ));
+        }
+    }
+    let e = o.evaluations.unwrap_or(DEFAULT_EVALUATIONS);
+    if !(1..=MAX_EVALUATIONS).contains(&e) {
+        return Err(at.invalid(
+            span,
+            "optimizer.evaluations",
+            e.to_string(),
+            format!("1 ..= {MAX_EVALUATIONS}"),
+        ));
+    }
+    let seed = o.seed.unwrap_or(0);
+    if seed < 0 {
+        return Err(at.invalid(
+            span,
+            "optimizer.seed",
+            seed.to_string(),
+            "a whole number ≥ 0".into(),
+        ));
+    }
+    Ok((method, o.population.map(|p| p as usize), e, seed as u64))
 }
 
 fn parse_constraint(expr: &str) -> Option<Constraint> {

@@ -450,44 +450,7 @@ impl SceneSpec {
     ) -> Result<ChainSetup, InputError> {
         let mut setup = ChainSetup::default();
         if let Some(w) = &self.walls {
-            let e = c.opt("walls.young_modulus", w.young_modulus, positive, POS)?;
-            let p = c.opt("walls.poisson_ratio", w.poisson_ratio, poisson, POISSON)?;
-            let wall = |bead: usize| Wall {
-                young_modulus: e.unwrap_or(young[bead]),
-                poisson_ratio: p.unwrap_or(nu[bead]),
-            };
-            setup.left_wall = w.left.unwrap_or(false).then(|| wall(0));
-            setup.right_wall = w.right.unwrap_or(false).then(|| wall(n - 1));
-            if setup.left_wall.is_none() && setup.right_wall.is_none() {
-                return Err(c.err(
-                    "walls",
-                    "[walls] with neither wall",
-                    "`left = true` and/or `right = true` (no [walls] table: free ends)",
-                ));
-            }
-            if let Some(f0) = w.precompression {
-                let f0 = c.num("walls.precompression", f0, non_negative, "must be ≥ 0 (N)")?;
-                if f0 > 0.0 {
-                    if setup.left_wall.is_none() || setup.right_wall.is_none() {
-                        return Err(c.err(
-                            "walls.precompression",
-                            f0,
-                            "both walls (`left = true`, `right = true`): a static force needs two ends to push against",
-                        ));
-                    }
-                    if let Some(i) = gap.iter().position(|&g| g != 0.0) {
-                        return Err(c.err(
-                            "walls.precompression",
-                            f0,
-                            format!(
-                                "touching beads: gap[{i}] = {} m (a precompressed chain has no gaps)",
-                                gap[i]
-                            ),
-                        ));
-                    }
-                }
-                setup.precompression = f0;
-            }
+            Self::walls_of(c, w, &mut setup, n, young, nu, gap)?;
         }
         if let Some(g) = &self.gravity {
             setup.gravity = self.gravity_of(c, g, &setup, gap)?;
@@ -512,53 +475,7 @@ impl SceneSpec {
             setup.pulse = Some(self.drive_of(c, d, n, duration)?);
         }
         if let Some(r) = &self.record {
-            let beads = match (&r.beads, r.stride) {
-                (Some(_), Some(k)) => {
-                    return Err(c.err(
-                        "record.stride",
-                        k,
-                        "either `beads` (a list) or `stride` (every stride-th bead), not both",
-                    ))
-                }
-                (None, Some(k)) => {
-                    if !(1..n as i64).contains(&k) {
-                        return Err(c.err(
-                            "record.stride",
-                            k,
-                            format!("a whole number in 1 ..= {} (beads 0, stride, 2·stride, … and the last)", n - 1),
-                        ));
-                    }
-                    let mut b: Vec<usize> = (0..n).step_by(k as usize).collect();
-                    if b.last() != Some(&(n - 1)) {
-                        b.push(n - 1);
-                    }
-                    b
-                }
-                (Some(b), None) if !b.is_empty() => bead_list(c, "record.beads", b, n)?,
-                _ => {
-                    return Err(InputError::Missing {
-                        origin: self.origin.clone(),
-                        line: self.line_of("record"),
-                        key: "record.beads".into(),
-                        help: format!(
-                            "the recorded beads, indices in 0 ..= {} (or `stride = k`: every k-th bead)",
-                            n - 1
-                        ),
-                    })
-                }
-            };
-            let every = match r.every {
-                Some(e) => c.num("record.every", e, positive, "must be a time > 0 (s)")?,
-                None => {
-                    return Err(InputError::Missing {
-                        origin: self.origin.clone(),
-                        line: self.line_of("record"),
-                        key: "record.every".into(),
-                        help: "the spacing of the trace's rows (s)".into(),
-                    })
-                }
-            };
-            setup.record = Some(Record { beads, every });
+            setup.record = Some(self.record_of(c, r, n)?);
         }
         if let Some(p) = &self.probes {
             setup.probes = bead_list(c, "probes.beads", p.beads.as_deref().unwrap_or(&[]), n)?;
@@ -572,6 +489,113 @@ impl SceneSpec {
             setup.probes.sort_unstable();
         }
         Ok(setup)
+    }
+
+    /// `[walls]`: which ends, their material (the end beads' unless
+    /// given) and the precompression between them.
+    fn walls_of(
+        c: &Check,
+        w: &super::spec::WallsSpec,
+        setup: &mut ChainSetup,
+        n: usize,
+        young: &[f64],
+        nu: &[f64],
+        gap: &[f64],
+    ) -> Result<(), InputError> {
+        let e = c.opt("walls.young_modulus", w.young_modulus, positive, POS)?;
+        let p = c.opt("walls.poisson_ratio", w.poisson_ratio, poisson, POISSON)?;
+        let wall = |bead: usize| Wall {
+            young_modulus: e.unwrap_or(young[bead]),
+            poisson_ratio: p.unwrap_or(nu[bead]),
+        };
+        setup.left_wall = w.left.unwrap_or(false).then(|| wall(0));
+        setup.right_wall = w.right.unwrap_or(false).then(|| wall(n - 1));
+        if setup.left_wall.is_none() && setup.right_wall.is_none() {
+            return Err(c.err(
+                "walls",
+                "[walls] with neither wall",
+                "`left = true` and/or `right = true` (no [walls] table: free ends)",
+            ));
+        }
+        if let Some(f0) = w.precompression {
+            let f0 = c.num("walls.precompression", f0, non_negative, "must be ≥ 0 (N)")?;
+            if f0 > 0.0 {
+                if setup.left_wall.is_none() || setup.right_wall.is_none() {
+                    return Err(c.err(
+                        "walls.precompression",
+                        f0,
+                        "both walls (`left = true`, `right = true`): a static force needs two ends to push against",
+                    ));
+                }
+                if let Some(i) = gap.iter().position(|&g| g != 0.0) {
+                    return Err(c.err(
+                        "walls.precompression",
+                        f0,
+                        format!(
+                            "touching beads: gap[{i}] = {} m (a precompressed chain has no gaps)",
+                            gap[i]
+                        ),
+                    ));
+                }
+            }
+            setup.precompression = f0;
+        }
+        Ok(())
+    }
+
+    /// `[record]`: the recorded beads (a list, or every stride-th and the
+    /// last) and the spacing of the trace's rows.
+    fn record_of(
+        &self,
+        c: &Check,
+        r: &super::spec::RecordSpec,
+        n: usize,
+    ) -> Result<Record, InputError> {
+        let beads = match (&r.beads, r.stride) {
+            (Some(_), Some(k)) => {
+                return Err(c.err(
+                    "record.stride",
+                    k,
+                    "either `beads` (a list) or `stride` (every stride-th bead), not both",
+                ))
+            }
+            (None, Some(k)) => {
+                if !(1..n as i64).contains(&k) {
+                    return Err(c.err(
+                        "record.stride",
+                        k,
+                        format!("a whole number in 1 ..= {} (beads 0, stride, 2·stride, … and the last)", n - 1),
+                    ));
+                }
+                let mut b: Vec<usize> = (0..n).step_by(k as usize).collect();
+                if b.last() != Some(&(n - 1)) {
+                    b.push(n - 1);
+                }
+                b
+            }
+            (Some(b), None) if !b.is_empty() => bead_list(c, "record.beads", b, n)?,
+            _ => return Err(InputError::Missing {
+                origin: self.origin.clone(),
+                line: self.line_of("record"),
+                key: "record.beads".into(),
+                help: format!(
+                    "the recorded beads, indices in 0 ..= {} (or `stride = k`: every k-th bead)",
+                    n - 1
+                ),
+            }),
+        };
+        let every = match r.every {
+            Some(e) => c.num("record.every", e, positive, "must be a time > 0 (s)")?,
+            None => {
+                return Err(InputError::Missing {
+                    origin: self.origin.clone(),
+                    line: self.line_of("record"),
+                    key: "record.every".into(),
+                    help: "the spacing of the trace's rows (s)".into(),
+                })
+            }
+        };
+        Ok(Record { beads, every })
     }
 
     fn pulse_of(
