@@ -574,15 +574,17 @@ impl SceneSpec {
                 b
             }
             (Some(b), None) if !b.is_empty() => bead_list(c, "record.beads", b, n)?,
-            _ => return Err(InputError::Missing {
-                origin: self.origin.clone(),
-                line: self.line_of("record"),
-                key: "record.beads".into(),
-                help: format!(
+            _ => {
+                return Err(InputError::Missing {
+                    origin: self.origin.clone(),
+                    line: self.line_of("record"),
+                    key: "record.beads".into(),
+                    help: format!(
                     "the recorded beads, indices in 0 ..= {} (or `stride = k`: every k-th bead)",
                     n - 1
                 ),
-            }),
+                })
+            }
         };
         let every = match r.every {
             Some(e) => c.num("record.every", e, positive, "must be a time > 0 (s)")?,
