@@ -160,6 +160,33 @@ impl Source {
         self.line_col(offset).0
     }
 
+    /// A value this document gives (at `line`) that is not allowed.
+    pub fn invalid(
+        &self,
+        line: Option<usize>,
+        key: &str,
+        value: String,
+        allowed: String,
+    ) -> InputError {
+        InputError::Invalid {
+            origin: self.name.clone(),
+            line,
+            key: key.to_string(),
+            value,
+            allowed,
+        }
+    }
+
+    /// A key this document leaves out (in the table at `line`, if any).
+    pub fn missing(&self, line: Option<usize>, key: &str, help: impl Into<String>) -> InputError {
+        InputError::Missing {
+            origin: self.name.clone(),
+            line,
+            key: key.to_string(),
+            help: help.into(),
+        }
+    }
+
     /// Parse `self.text` into `T`, turning serde's "unknown field" into an
     /// [`InputError::UnknownKey`] with a suggestion, and other failures into
     /// [`InputError::Syntax`] with line and column.

@@ -312,16 +312,15 @@ impl Problem {
     /// names is looked for).
     pub fn parse(src: &Source, dir: &Path) -> Result<Problem, InputError> {
         let raw: RawProblem = src.parse_toml()?;
-        let at = Errors { src };
         let mut inputs = vec![];
         let scene = crate::sweep::base_scene(src, raw.scene.as_ref(), dir, &mut inputs)?;
         let base = scene.validate()?;
-        let variables = variables(&at, raw.variable.unwrap_or_default(), &scene, &base)?;
+        let variables = variables(src, raw.variable.unwrap_or_default(), &scene, &base)?;
         let model = crate::model::of(&base, &varied(&variables));
         let columns = model.header();
-        let objective = objective(&at, raw.objective, &columns)?;
-        let constraints = constraints(&at, raw.constraint.unwrap_or_default(), &columns)?;
-        let (method, population, evaluations, seed) = optimizer(&at, raw.optimizer)?;
+        let objective = objective(src, raw.objective, &columns)?;
+        let constraints = constraints(src, raw.constraint.unwrap_or_default(), &columns)?;
+        let (method, population, evaluations, seed) = optimizer(src, raw.optimizer)?;
         let population = population.unwrap_or_else(|| cmaes::default_population(variables.len()));
         Ok(Problem {
             origin: src.name.clone(),
@@ -520,44 +519,12 @@ fn expand(name: &str) -> Result<Vec<String>, String> {
     }
 }
 
-/// A problem file's errors, pointing at its name and line.
-struct Errors<'a> {
-    src: &'a Source,
-}
-
-impl Errors<'_> {
-    fn invalid(
-        &self,
-        span: std::ops::Range<usize>,
-        key: &str,
-        value: String,
-        allowed: String,
-    ) -> InputError {
-        InputError::Invalid {
-            origin: self.src.name.clone(),
-            line: Some(self.src.line(span.start)),
-            key: key.to_string(),
-            value,
-            allowed,
-        }
-    }
-
-    fn missing(&self, key: &str, help: &str) -> InputError {
-        InputError::Missing {
-            origin: self.src.name.clone(),
-            line: None,
-            key: key.to_string(),
-            help: help.to_string(),
-        }
-    }
-}
-
 /// The `[[variable]]` tables, ranges of indices expanded: each a key the
 /// model's sweeps take, setting a quantity no other variable sets, whose
 /// every value alone (the others at the base scene's) makes a valid scene
 /// of the base scene's kind.
 fn variables(
-    at: &Errors,
+    src: &Source,
     raw: Vec<Spanned<RawVariable>>,
     scene: &SceneSpec,
     base: &Scene,
@@ -567,7 +534,12 @@ fn variables(
         let span = v.span();
         let v = v.into_inner();
         let bad = |value: String, allowed: &str| {
-            at.invalid(span.clone(), "variable", value, allowed.to_string())
+            src.invalid(
+                Some(src.line(span.start)),
+                "variable",
+                value,
+                allowed.to_string(),
+            )
         };
         let domain = domain(&v).map_err(|(value, allowed)| bad(value, &allowed))?;
         for name in expand(&v.name).map_err(|e| bad(v.name.clone(), &e))? {
@@ -601,15 +573,17 @@ fn variables(
         }
     }
     if variables.is_empty() {
-        return Err(at.missing(
+        return Err(src.missing(
+            None,
             "variable",
             "at least one [[variable]] table: name = \"<key>\" with min/max or choices",
         ));
     }
     if variables.len() > MAX_VARIABLES {
-        return Err(at.missing(
+        return Err(src.missing(
+            None,
             "variable",
-            &format!(
+            format!(
                 "at most {MAX_VARIABLES} variables ({} given)",
                 variables.len()
             ),
@@ -682,12 +656,13 @@ fn allowed_columns(columns: &[String]) -> String {
 
 /// `[objective]`: the column and whether it is maximised.
 fn objective(
-    at: &Errors,
+    src: &Source,
     raw: Option<Spanned<RawObjective>>,
     columns: &[String],
 ) -> Result<(String, bool), InputError> {
     let Some(obj) = raw else {
-        return Err(at.missing(
+        return Err(src.missing(
+            None,
             "objective",
             "an [objective] table: minimize = \"<column>\" or maximize = \"<column>\"",
         ));
@@ -698,8 +673,8 @@ fn objective(
         (Some(c), None) => (c, false),
         (None, Some(c)) => (c, true),
         _ => {
-            return Err(at.invalid(
-                span,
+            return Err(src.invalid(
+                Some(src.line(span.start)),
                 "objective",
                 "minimize and maximize".into(),
                 "one of `minimize` or `maximize`".into(),
@@ -707,14 +682,19 @@ fn objective(
         }
     };
     if !known(columns, &objective.0) || objective.0 == "status" {
-        return Err(at.invalid(span, "objective", objective.0, allowed_columns(columns)));
+        return Err(src.invalid(
+            Some(src.line(span.start)),
+            "objective",
+            objective.0,
+            allowed_columns(columns),
+        ));
     }
     Ok(objective)
 }
 
 /// The `[[constraint]]` comparisons, each of a known column.
 fn constraints(
-    at: &Errors,
+    src: &Source,
     raw: Vec<Spanned<RawConstraint>>,
     columns: &[String],
 ) -> Result<Vec<Constraint>, InputError> {
@@ -725,16 +705,16 @@ fn constraints(
         match parse_constraint(&expr) {
             Some(c) if known(columns, &c.lhs) => constraints.push(c),
             Some(c) => {
-                return Err(at.invalid(
-                    span,
+                return Err(src.invalid(
+                    Some(src.line(span.start)),
                     "constraint.expr",
                     expr.clone(),
                     format!("`{}`: {}", c.lhs, allowed_columns(columns)),
                 ))
             }
             None => {
-                return Err(at.invalid(
-                    span,
+                return Err(src.invalid(
+                    Some(src.line(span.start)),
                     "constraint.expr",
                     expr,
                     "`<column> <= <number>` (or <, >=, >)".into(),
@@ -748,7 +728,7 @@ fn constraints(
 /// `[optimizer]`: method, population (None: the method's default),
 /// evaluations and seed.
 fn optimizer(
-    at: &Errors,
+    src: &Source,
     raw: Option<Spanned<RawOptimizer>>,
 ) -> Result<(Method, Option<usize>, i64, u64), InputError> {
     let Some(o) = raw else {
@@ -759,8 +739,8 @@ fn optimizer(
     let method = match o.method.as_deref() {
         None => Method::CmaEs,
         Some(m) => Method::from_name(m).ok_or_else(|| {
-            at.invalid(
-                span.clone(),
+            src.invalid(
+                Some(src.line(span.start)),
                 "optimizer.method",
                 m.into(),
                 format!("one of {}", Method::names()),
@@ -769,8 +749,8 @@ fn optimizer(
     };
     if let Some(p) = o.population {
         if !(2..=100_000).contains(&p) {
-            return Err(at.invalid(
-                span,
+            return Err(src.invalid(
+                Some(src.line(span.start)),
                 "optimizer.population",
                 p.to_string(),
                 "2 ..= 100000".into(),
@@ -779,8 +759,8 @@ fn optimizer(
     }
     let e = o.evaluations.unwrap_or(DEFAULT_EVALUATIONS);
     if !(1..=MAX_EVALUATIONS).contains(&e) {
-        return Err(at.invalid(
-            span,
+        return Err(src.invalid(
+            Some(src.line(span.start)),
             "optimizer.evaluations",
             e.to_string(),
             format!("1 ..= {MAX_EVALUATIONS}"),
@@ -788,8 +768,8 @@ fn optimizer(
     }
     let seed = o.seed.unwrap_or(0);
     if seed < 0 {
-        return Err(at.invalid(
-            span,
+        return Err(src.invalid(
+            Some(src.line(span.start)),
             "optimizer.seed",
             seed.to_string(),
             "a whole number ≥ 0".into(),

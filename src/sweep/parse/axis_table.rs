@@ -33,12 +33,11 @@ impl Ctx<'_> {
         let line = Some(src.line(a.span().start));
         let a = a.into_inner();
         let Some(name) = a.param.clone() else {
-            return Err(InputError::Missing {
-                origin: cx.origin.clone(),
+            return Err(src.missing(
                 line,
-                key: "axis.param".into(),
-                help: "the scene key this axis varies, e.g. \"mass[2]\" or \"gap\"".into(),
-            });
+                "axis.param",
+                "the scene key this axis varies, e.g. \"mass[2]\" or \"gap\"",
+            ));
         };
         let param = Param::parse(&name)
             .map_err(|allowed| cx.invalid(line, "axis.param", format!("{name:?}"), allowed))?;

@@ -66,13 +66,13 @@ pub(crate) fn base_scene(
     inputs: &mut Vec<PathBuf>,
 ) -> Result<SceneSpec, InputError> {
     Ok(match scene {
-        None => return Err(InputError::Missing {
-            origin: src.name.clone(),
-            line: None,
-            key: "scene".into(),
-            help: "`scene = \"file.toml\"` (relative to the sweep file) or an inline [scene] table"
-                .into(),
-        }),
+        None => {
+            return Err(src.missing(
+                None,
+                "scene",
+                "`scene = \"file.toml\"` (relative to the sweep file) or an inline [scene] table",
+            ))
+        }
         Some(s) => match s.get_ref() {
             toml::Value::String(file) => {
                 let p = dir.join(file);
@@ -85,13 +85,12 @@ pub(crate) fn base_scene(
                 SceneSpec::from_raw(src, inline.scene)?
             }
             other => {
-                return Err(InputError::Invalid {
-                    origin: src.name.clone(),
-                    line: Some(src.line(s.span().start)),
-                    key: "scene".into(),
-                    value: other.to_string(),
-                    allowed: "a scene file name (string) or a [scene] table".into(),
-                })
+                return Err(src.invalid(
+                    Some(src.line(s.span().start)),
+                    "scene",
+                    other.to_string(),
+                    "a scene file name (string) or a [scene] table".into(),
+                ))
             }
         },
     })
@@ -100,7 +99,6 @@ pub(crate) fn base_scene(
 /// A sweep file being read: its errors carry its name and lines.
 struct Ctx<'a> {
     src: &'a Source,
-    origin: String,
 }
 
 impl Ctx<'_> {
@@ -111,13 +109,7 @@ impl Ctx<'_> {
         value: String,
         allowed: String,
     ) -> InputError {
-        InputError::Invalid {
-            origin: self.origin.clone(),
-            line,
-            key: key.to_string(),
-            value,
-            allowed,
-        }
+        self.src.invalid(line, key, value, allowed)
     }
 
     /// The base scene: a file the sweep names, or an inline `[scene]`.
@@ -208,12 +200,11 @@ impl Ctx<'_> {
                 ));
             }
             let Some(file) = pt.get_ref().file.clone() else {
-                return Err(InputError::Missing {
-                    origin: cx.origin.clone(),
+                return Err(src.missing(
                     line,
-                    key: "points.file".into(),
-                    help: "a CSV table, relative to the sweep file: a header naming the params, one row per scene".into(),
-                });
+                    "points.file",
+                    "a CSV table, relative to the sweep file: a header naming the params, one row per scene",
+                ));
             };
             let path = dir.join(&file);
             let axes = points::read(&path, scene_spec, base)?;
@@ -395,10 +386,7 @@ impl Sweep {
     /// Parse a sweep document; `dir` resolves a relative `scene = "file"`.
     pub fn parse(src: &Source, dir: &Path) -> Result<Sweep, InputError> {
         let raw: RawSweep = src.parse_toml()?;
-        let cx = Ctx {
-            src,
-            origin: src.name.clone(),
-        };
+        let cx = Ctx { src };
         let mut inputs = Vec::new();
         let scene_spec = cx.scene(&raw, dir, &mut inputs)?;
         let base = scene_spec.validate()?;
@@ -430,7 +418,7 @@ impl Sweep {
         let axes: Vec<Axis> = axes.into_iter().map(|(_, a)| a).collect();
         let model = crate::model::of(&base, &super::varied(&axes));
         let mut sweep = Sweep {
-            origin: cx.origin.clone(),
+            origin: src.name.clone(),
             inputs,
             description: raw.description,
             scene: scene_spec,
