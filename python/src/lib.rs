@@ -207,14 +207,7 @@ fn sweep(
             stop_on(py.check_signals(), &cancel, &mut interrupted);
         }
     }
-    let result = py.detach(|| worker.join());
-    if let Some(e) = interrupted {
-        return Err(e);
-    }
-    let summary = match result {
-        Ok(Ok(r)) => r.map_err(to_py)?,
-        _ => return Err(PyRuntimeError::new_err("the sweep thread panicked")),
-    };
+    let summary = joined(py, worker, interrupted, "the sweep thread")?;
     let d = PyDict::new(py);
     d.set_item("scenes", summary.scenes)?;
     d.set_item("ok", summary.ok)?;
@@ -229,6 +222,25 @@ fn sweep(
 /// `progress` callback raised) stops it: `cancel` set, the exception kept
 /// to raise once the worker has stopped; later ones are dropped. Whether
 /// this one stopped it.
+/// The run on `worker` once it has ended: the interrupt that stopped it
+/// (Ctrl-C, or an exception `progress` raised) first, else its own result;
+/// a panic in it as a RuntimeError naming `what`.
+fn joined<T: Send>(
+    py: Python<'_>,
+    worker: std::thread::JoinHandle<std::thread::Result<Result<T, Error>>>,
+    interrupted: Option<PyErr>,
+    what: &str,
+) -> PyResult<T> {
+    let result = py.detach(|| worker.join());
+    if let Some(e) = interrupted {
+        return Err(e);
+    }
+    match result {
+        Ok(Ok(r)) => r.map_err(to_py),
+        _ => Err(PyRuntimeError::new_err(format!("{what} panicked"))),
+    }
+}
+
 fn stop_on(r: PyResult<()>, cancel: &AtomicBool, interrupted: &mut Option<PyErr>) -> bool {
     match r {
         Err(e) if interrupted.is_none() => {
@@ -429,14 +441,7 @@ fn optimize(
             cv.notify_all();
         }
     }
-    let result = py.detach(|| worker.join());
-    if let Some(e) = interrupted {
-        return Err(e);
-    }
-    let summary = match result {
-        Ok(Ok(r)) => r.map_err(to_py)?,
-        _ => return Err(PyRuntimeError::new_err("the optimisation panicked")),
-    };
+    let summary = joined(py, worker, interrupted, "the optimisation")?;
     let d = PyDict::new(py);
     d.set_item("columns", columns)?;
     d.set_item("evaluations", summary.evaluations)?;
