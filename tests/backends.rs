@@ -530,6 +530,99 @@ fn cpu_lanes_match_single_runs_bit_for_bit() {
     }
 }
 
+/// A struct of a shader: its members and size.
+fn structure(module: &naga::Module, name: &str) -> (Vec<naga::StructMember>, u32) {
+    module
+        .types
+        .iter()
+        .find_map(|(_, t)| match (&t.name, &t.inner) {
+            (Some(n), naga::TypeInner::Struct { members, span }) if n == name => {
+                Some((members.clone(), *span))
+            }
+            _ => None,
+        })
+        .unwrap_or_else(|| panic!("struct {name} in the shader"))
+}
+
+/// A named u32 constant of a shader.
+fn constant(module: &naga::Module, name: &str) -> u32 {
+    let (_, c) = module
+        .constants
+        .iter()
+        .find(|(_, c)| c.name.as_deref() == Some(name))
+        .unwrap_or_else(|| panic!("no const {name} in the shader"));
+    match module.global_expressions[c.init] {
+        naga::Expression::Literal(naga::Literal::U32(v)) => v,
+        ref e => panic!("{name}: {e:?}"),
+    }
+}
+
+/// The chain model's boundary is defined once too
+/// (backend::layout::granular): the assembled chain shader, as naga reads
+/// it, has the header and control words at the host's offsets, the scalars'
+/// indices, flags, codes and constants the host packs and unpacks with.
+#[test]
+fn chain_shader_and_host_agree_on_the_boundary() {
+    use hertz_cradle::backend::layout::granular::{
+        self as g, ChainCtl, ChainHead, Sc, CODES, CTL_FIELDS, HEAD_FIELDS, SCALAR_FIELDS,
+    };
+    use std::mem::offset_of;
+    // Spot checks that the macro's table is the struct's (all u32, in order).
+    assert_eq!(std::mem::size_of::<ChainHead>(), 4 * HEAD_FIELDS.len());
+    for (name, at) in [
+        ("n", offset_of!(ChainHead, n)),
+        ("sc", offset_of!(ChainHead, sc)),
+        ("o_fl", offset_of!(ChainHead, o_fl)),
+        ("region_beads", offset_of!(ChainHead, region_beads)),
+    ] {
+        assert_eq!(HEAD_FIELDS[at / 4].0, name);
+    }
+    for p in [Precision::F64, Precision::Df64] {
+        let src = hertz_cradle::backend::gpu::chain_shader(p, ChainKernel { local: 64, wg: 64 });
+        let module = naga::front::wgsl::parse_str(&src).unwrap();
+        let (members, span) = structure(&module, "Head");
+        assert_eq!(span as usize, std::mem::size_of::<ChainHead>());
+        let got: Vec<(String, u32)> = members
+            .iter()
+            .map(|m| (m.name.clone().unwrap(), m.offset))
+            .collect();
+        let want: Vec<(String, u32)> = (HEAD_FIELDS.iter().enumerate())
+            .map(|(i, (n, _))| (n.to_string(), 4 * i as u32))
+            .collect();
+        assert_eq!(got, want, "{}", p.name());
+        let (members, span) = structure(&module, "Ctl");
+        assert_eq!(span as usize, std::mem::size_of::<ChainCtl>());
+        let ctl_offsets = [
+            ("budget", offset_of!(ChainCtl, budget)),
+            ("done", offset_of!(ChainCtl, done)),
+        ];
+        assert_eq!(members.len(), CTL_FIELDS.len());
+        for ((m, (name, at)), (_, atomic, _)) in members.iter().zip(ctl_offsets).zip(CTL_FIELDS) {
+            assert_eq!((m.name.as_deref(), m.offset as usize), (Some(name), at));
+            let is_atomic = matches!(module.types[m.ty].inner, naga::TypeInner::Atomic(_));
+            assert_eq!(is_atomic, *atomic, "{name}");
+        }
+        assert_eq!(SCALAR_FIELDS.len(), g::SCALARS);
+        for (i, (name, _)) in SCALAR_FIELDS.iter().enumerate() {
+            assert_eq!(constant(&module, name) as usize, i, "{name}");
+        }
+        for (sc, name) in [
+            (Sc::H, "SC_H"),
+            (Sc::T, "SC_T"),
+            (Sc::MaxRatio, "SC_MAX_RATIO"),
+            (Sc::InvM, "SC_INV_M"),
+        ] {
+            assert_eq!(constant(&module, name) as usize, sc as usize);
+        }
+        for (name, code) in CODES {
+            assert_eq!(constant(&module, name), *code, "{name}");
+        }
+        assert_eq!(constant(&module, "MAX_STAGES") as usize, g::MAX_STAGES);
+        assert_eq!(constant(&module, "PROBE_REALS") as usize, g::PROBE_REALS);
+        assert_eq!((constant(&module, "WG"), constant(&module, "LV")), (64, 64));
+    }
+}
+
 /// The CPU–GPU boundary is defined once (backend::layout) and the shader's
 /// prelude is generated from it: the assembled shader, as naga reads it, must
 /// have the header, codes, flags and constants the Rust side uses, and its
@@ -537,7 +630,9 @@ fn cpu_lanes_match_single_runs_bit_for_bit() {
 /// numeric parity (it fails on a layout slip that no scene happens to show).
 #[test]
 fn shader_and_host_agree_on_the_boundary() {
-    use hertz_cradle::backend::layout::{self, GpuHeader, GpuQueue, HEADER_FIELDS, PARAMS, STATE};
+    use hertz_cradle::backend::layout::cradle::{
+        self as layout, GpuHeader, GpuQueue, HEADER_FIELDS, PARAMS, STATE,
+    };
     use std::mem::offset_of;
     let rust_offsets = [
         ("nb", offset_of!(GpuHeader, nb)),
@@ -552,19 +647,7 @@ fn shader_and_host_agree_on_the_boundary() {
     for p in [Precision::F32, Precision::F64, Precision::Df64] {
         let src = shader_source(p);
         let module = naga::front::wgsl::parse_str(&src).unwrap();
-        // A struct of the shader: its members and size.
-        let structure = |name: &str| {
-            module
-                .types
-                .iter()
-                .find_map(|(_, t)| match (&t.name, &t.inner) {
-                    (Some(n), naga::TypeInner::Struct { members, span }) if n == name => {
-                        Some((members.clone(), *span))
-                    }
-                    _ => None,
-                })
-                .unwrap_or_else(|| panic!("struct {name} in the shader"))
-        };
+        let structure = |name: &str| structure(&module, name);
         // struct Header: the same members at the same offsets, the same size.
         let (members, span) = structure("Header");
         assert_eq!(span as usize, std::mem::size_of::<GpuHeader>());
@@ -595,17 +678,7 @@ fn shader_and_host_agree_on_the_boundary() {
             assert_eq!(is_atomic, *atomic, "{name}");
         }
         // Named u32 constants: the Rust values.
-        let constant = |name: &str| -> u32 {
-            let (_, c) = module
-                .constants
-                .iter()
-                .find(|(_, c)| c.name.as_deref() == Some(name))
-                .unwrap_or_else(|| panic!("no const {name} in the {} shader", p.name()));
-            match module.global_expressions[c.init] {
-                naga::Expression::Literal(naga::Literal::U32(v)) => v,
-                ref e => panic!("{name}: {e:?}"),
-            }
-        };
+        let constant = |name: &str| constant(&module, name);
         for (_, name, code) in layout::ENDS {
             assert_eq!(constant(&format!("END_{name}")), *code);
         }

@@ -7,7 +7,7 @@
 // This file is what both kernels share: the bindings, a scene's scalar state
 // and constants, the pure functions. A kernel follows it: lanes.wgsl (one
 // invocation integrates a scene) or wide.wgsl (a workgroup integrates a
-// scene, an invocation per body). src/backend/layout.rs generates the
+// scene, an invocation per body). src/backend/layout/cradle.rs generates the
 // prelude (the `real` alias for the precision and its arithmetic r_*, the
 // header struct, buffer offsets p_*/s_*, result words W_*, END_*/FLAG_* codes
 // and the shared constants) and backend::gpu::shader_source puts the three
@@ -36,7 +36,7 @@ var<private> ct: array<real, 1>;
 // 1.0, read from the params buffer: a value the shader compiler cannot see,
 // so it cannot simplify the compensated sums in `add` away ((x+y)−x → y).
 var<private> one: real;
-// its f32 word, for the error-free sums and products of df64 (layout::prelude)
+// its f32 word, for the error-free sums and products of df64 (layout::arithmetic)
 var<private> one_s: f32;
 // per-scene constants (engine::cradle::Shape, and the per-lane constants of engine::cradle::Lanes)
 var<private> nb: u32;

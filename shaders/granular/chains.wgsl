@@ -13,97 +13,23 @@
 // `ctl.budget` steps until every chain is done, and finishes each from the
 // state read back (engine::granular::run::finish). WGSL has no u64: steps
 // are two u32 words. x0, the first bead's displacement, is not kept (only
-// traces use it). The prelude (backend::gpu::granular::chain_shader) gives
-// the constants WG, LOCAL and LV (the workgroup-memory arrays below), MAX_STAGES, MARGIN_EXTRA, CHECK_MASK, F_*, SNAP_*,
-// ST_*, the reals END_SCALE, ALMOST_ONE, HALF_PI and PI (as the CPU rounds
-// them), the precision's `real` and its arithmetic r_* (backend::layout,
-// as the cradle kernels have them: every operation on a real is a call, so
-// one body serves f64 and df64), r_count and r_finite, and two functions
-// written out there (lavapipe cuts loops short past a budget of
-// iterations): `peak` (60 bisection steps) and `half_sine`
+// traces use it). The prelude (backend::layout::granular::chain_shader, the
+// layout table) gives the structs Head (ChainHead) and Ctl (ChainCtl), the
+// scalars' indices SC_* (Sc), the constants WG, LOCAL and LV (the
+// workgroup-memory arrays below), MAX_STAGES, MARGIN_EXTRA, CHECK_MASK,
+// F_*, SNAP_*, ST_*, the reals END_SCALE, ALMOST_ONE, HALF_PI and PI (as
+// the CPU rounds them), the precision's `real` and its arithmetic r_*
+// (backend::layout, as the cradle kernels have them: every operation on a
+// real is a call, so one body serves f64 and df64), r_count and r_finite,
+// and two functions written out there (lavapipe cuts loops short past a
+// budget of iterations): `peak` (60 bisection steps) and `half_sine`
 // (step::half_sine, its factors printed from SINE_FACTORS). `real(x)` of a
 // literal is the precision's nearest value (layout::body_for).
-
-// One chain's header (backend::gpu::granular::ChainHead): sizes, the state
-// kept between steps, and offsets into R of its reals.
-struct Head {
-    n: u32,
-    stages: u32,
-    probes: u32,
-    probe_at: u32,
-    pulse_bead: u32,
-    flags: u32,
-    done: u32,
-    status: u32,
-    lo: u32,
-    hi: u32,
-    steps_lo: u32,
-    steps_hi: u32,
-    max_lo: u32,
-    max_hi: u32,
-    snaps: u32,
-    wlo: u32,
-    whi: u32,
-    sc: u32,
-    o_w: u32,
-    o_im: u32,
-    o_k: u32,
-    o_d0: u32,
-    o_f0: u32,
-    o_r: u32,
-    o_p: u32,
-    o_v: u32,
-    o_a: u32,
-    o_e: u32,
-    o_watch: u32,
-    o_snapv: u32,
-    o_snapp: u32,
-    o_snapev: u32,
-    o_kw: u32,
-    o_ps: u32,
-    o_vs: u32,
-    o_as: u32,
-    o_imp: u32,
-    o_fl: u32,
-    reach: u32,
-    msteps: u32,
-    regions: u32,
-    region_beads: u32,
-}
-
-// Steps per dispatch; chains done (counted once each, read by the host).
-struct Ctl {
-    budget: u32,
-    done: atomic<u32>,
-}
 
 @group(0) @binding(0) var<storage, read_write> heads: array<Head>;
 @group(0) @binding(1) var<storage, read_write> R: array<real>;
 @group(0) @binding(2) var<storage, read_write> ctl: Ctl;
 @group(0) @binding(3) var<storage, read> probe_beads: array<u32>;
-
-// Scalars at Head.sc.
-const SC_H: u32 = 0u;
-const SC_DURATION: u32 = 1u;
-const SC_MAX_TIME: u32 = 2u;
-const SC_FLOOR_V: u32 = 3u;
-const SC_FLOOR_F: u32 = 4u;
-const SC_PULSE_DURATION: u32 = 5u;
-const SC_PULSE_FORCE: u32 = 6u;
-const SC_T: u32 = 7u;
-const SC_END_AT: u32 = 8u;
-const SC_MAX_RATIO: u32 = 9u;
-const SC_OMEGA: u32 = 10u;
-// 1/m of the pulse's bead, apart from the bead's own 1/m: Mesa factors
-// x·a + y·a into (x + y)·a when it sees the same a, which is not the CPU's
-// rounding (the pulse's push is added to the contacts' as the CPU adds it).
-const SC_PULSE_IM: u32 = 11u;
-// 1.0: its f32 word is df64's opaque one (`one_s`, layout's ds_b).
-const SC_ONE: u32 = 12u;
-// The local refinement (step::Refine): near, floor, 1/steps.
-const SC_NEAR: u32 = 13u;
-const SC_FLOOR: u32 = 14u;
-const SC_INV_M: u32 = 15u;
 
 const NONE: u32 = 0xffffffffu;
 

@@ -8,7 +8,7 @@ use std::ops::{Add, Div, Mul, Neg, Sub};
 /// A float the integrator is generic over. Conversions go through `f64`,
 /// the precision every scene is specified and reported in. The operations
 /// are the ones the kernels use, each the same on the shader's side
-/// (`layout::prelude` writes them for each precision).
+/// (`layout::arithmetic` writes them for each precision).
 pub trait Real:
     Copy
     + PartialOrd
@@ -116,7 +116,7 @@ native!(f32, Precision::F32, true, 16.0);
 /// are error-free transformations (Knuth's two-sum, Dekker's product with
 /// its factors split by masking), quotients and square roots take one
 /// correction from the f32 estimate. The shader twins each
-/// operation (`ds_*` in `layout::prelude`), in the same order.
+/// operation (`ds_*` in `layout::arithmetic`), in the same order.
 ///
 /// Infinities behave as in f32 (the integrator's Rust side starts minima
 /// from ∞; the shader keeps flags instead and never makes one).
@@ -155,7 +155,7 @@ fn split(a: f32) -> (f32, f32) {
 /// a·b and its rounding error, exactly: the halves' products are exact
 /// (12 × 12 bits), so is every sum of Dekker's (no fused multiply–add
 /// needed: the shader's compilers may not fuse one, or may fuse where
-/// they like; see `layout::prelude`).
+/// they like; see `layout::arithmetic`).
 #[inline(always)]
 fn two_prod(a: f32, b: f32) -> Df64 {
     let p = a * b;

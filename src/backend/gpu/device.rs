@@ -1,13 +1,14 @@
 //! One batch on the device: buffers, rounds of dispatches kept in flight,
 //! the queue's counters read between rounds, and the state read back.
 
-use anyhow::{anyhow, Result};
+use anyhow::Result;
 use bytemuck::Pod;
 use wgpu::util::DeviceExt;
 
 use super::profile::Pace;
+use super::staging::{map_read, Mapping};
 use super::Gpu;
-use crate::backend::layout::{GpuHeader, GpuQueue, END_RUNNING, NO_SCENE, WORDS};
+use crate::backend::layout::cradle::{GpuHeader, GpuQueue, END_RUNNING, NO_SCENE, WORDS};
 use crate::engine::real::Real;
 use crate::engine::{Chain, Solver};
 
@@ -17,25 +18,12 @@ pub(super) const WORKGROUP: u32 = 64;
 /// counters) queued at once: the device runs one while the host reads the
 /// other's counters.
 const ROUNDS_IN_FLIGHT: usize = 2;
-/// Where a buffer's mapping for reading reports (`map_read`).
-pub(super) type Mapping = std::sync::mpsc::Receiver<Result<(), wgpu::BufferAsyncError>>;
-
 /// `CRADLE_GPU_LOG=1`: one line on stderr per look at a batch's counters
 /// (scenes, workgroups, rounds per dispatch, scenes done, seconds since the
 /// last look): how a batch goes on a device, for tuning a profile.
 fn log_rounds() -> bool {
     static ON: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
     *ON.get_or_init(|| std::env::var("CRADLE_GPU_LOG").is_ok_and(|v| v == "1"))
-}
-
-/// Ask for `b` to be mapped for reading once the submissions that write it
-/// are done (call after submitting them); `Gpu::mapped` waits and copies.
-pub(super) fn map_read(b: &wgpu::Buffer) -> Mapping {
-    let (tx, rx) = std::sync::mpsc::channel();
-    b.slice(..).map_async(wgpu::MapMode::Read, move |r| {
-        let _ = tx.send(r);
-    });
-    rx
 }
 
 impl Gpu {
@@ -209,81 +197,5 @@ impl Gpu {
             self.stats.completed();
         }
         Ok((words, reals))
-    }
-
-    /// A staging buffer for reading `size` bytes back.
-    pub(super) fn read_buffer(&self, label: &str, size: u64) -> wgpu::Buffer {
-        self.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some(label),
-            size,
-            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        })
-    }
-
-    /// `len` bytes of `src` from `offset`, copied to a staging buffer and
-    /// given to `f` where they are mapped.
-    pub(super) fn read_with<T: Pod, U>(
-        &self,
-        src: &wgpu::Buffer,
-        offset: u64,
-        len: u64,
-        f: impl FnOnce(&[T]) -> U,
-    ) -> Result<U> {
-        let read = self.read_buffer("read back", len);
-        let mut enc = self
-            .device
-            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                label: Some("read back"),
-            });
-        enc.copy_buffer_to_buffer(src, offset, &read, 0, len);
-        self.stats.submitted(0);
-        let index = self.queue.submit(Some(enc.finish()));
-        let rx = map_read(&read);
-        let out = self.with_mapped(&read, index, rx, f);
-        self.stats.completed();
-        out
-    }
-
-    /// Wait for submission `index` and copy a mapped buffer's contents out.
-    pub(super) fn mapped<T: Pod>(
-        &self,
-        b: &wgpu::Buffer,
-        index: wgpu::SubmissionIndex,
-        rx: Mapping,
-    ) -> Result<Vec<T>> {
-        self.with_mapped(b, index, rx, <[T]>::to_vec)
-    }
-
-    /// Wait for submission `index` and give a mapped buffer's contents to
-    /// `f` where they lie (no host copy of a large read-back; a copy only if
-    /// the mapping is not aligned for `T`).
-    pub(super) fn with_mapped<T: Pod, U>(
-        &self,
-        b: &wgpu::Buffer,
-        index: wgpu::SubmissionIndex,
-        rx: Mapping,
-        f: impl FnOnce(&[T]) -> U,
-    ) -> Result<U> {
-        self.device
-            .poll(wgpu::PollType::Wait {
-                submission_index: Some(index),
-                timeout: None,
-            })
-            .map_err(|e| anyhow!("GPU poll failed: {e}"))?;
-        rx.recv()?
-            .map_err(|e| anyhow!("GPU read-back failed: {e}"))?;
-        let out = {
-            let range = b
-                .slice(..)
-                .get_mapped_range()
-                .map_err(|e| anyhow!("GPU read-back failed: {e}"))?;
-            match bytemuck::try_cast_slice::<u8, T>(&range) {
-                Ok(view) => f(view),
-                Err(_) => f(&bytemuck::pod_collect_to_vec::<u8, T>(&range)),
-            }
-        };
-        b.unmap();
-        Ok(out)
     }
 }

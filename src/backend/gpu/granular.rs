@@ -10,19 +10,21 @@
 use std::sync::Arc;
 use std::time::Instant;
 
-use anyhow::{anyhow, bail, Context, Result};
-use bytemuck::{Pod, Zeroable};
+use anyhow::{bail, Context, Result};
 use wgpu::util::DeviceExt;
 
-use super::device::map_read;
+use super::staging::map_read;
 use super::Gpu;
-use crate::backend::ChainJob;
-use crate::engine::granular::observe::{
-    FirstPeak, WallWatch, FIRST_PEAK_REALS, LEADING_FRACTION, LEADING_RECORDS, WALL_WATCH_REALS,
+pub use crate::backend::layout::granular::{chain_shader, ChainKernel};
+use crate::backend::layout::granular::{
+    ChainCtl, ChainHead, Offsets, Sc, F_DURATION, F_END_AT, F_KINKS, F_PULSE, F_REFINE, F_RIGHT,
+    MAX_STAGES, PROBE_REALS, SNAP_ENERGY, SNAP_WIDTH, ST_NON_FINITE, ST_STEP_CAP, ST_TIME_CAP,
 };
-use crate::engine::granular::run::{self, overlap_ratio, Watch, CHECK_EVERY};
-use crate::engine::granular::step::{State, MARGIN_EXTRA, SINE_FACTORS};
-use crate::engine::granular::{Beads, ChainOutcome, Consts, Plan, END_MARGIN};
+use crate::backend::ChainJob;
+use crate::engine::granular::observe::{FirstPeak, WallWatch, FIRST_PEAK_REALS, WALL_WATCH_REALS};
+use crate::engine::granular::run::{self, overlap_ratio, Watch};
+use crate::engine::granular::step::State;
+use crate::engine::granular::{Beads, ChainOutcome, Consts, Plan};
 use crate::engine::real::{Df64, Real};
 use crate::engine::Status;
 use crate::scene::Precision;
@@ -44,21 +46,6 @@ pub fn chain_wg(n: usize) -> u32 {
         .clamp(CHAIN_WG, CHAIN_WG_MOST)
 }
 
-/// Which chain pipeline a chain runs in: `local` beads in workgroup memory
-/// (0: the global path; `local_beads`) and `wg` invocations per workgroup.
-/// The outcomes do not depend on it (the loops' per-bead work is the same,
-/// the reductions exact in any order).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
-pub struct ChainKernel {
-    pub local: u32,
-    pub wg: u32,
-}
-/// Most substeps of a method (the shader's private weights).
-const MAX_STAGES: usize = 16;
-/// Reals of a chain's scalars (`SC_*` in the shader).
-const SCALARS: usize = 16;
-/// Reals per probe: its velocity peak, then its force peak.
-const PROBE_REALS: usize = 2 * FIRST_PEAK_REALS;
 /// Loop iterations per dispatch and workgroup on a software adapter
 /// (`profile::LOOP_CAP`'s margin: llvmpipe cuts loops short past ~2^16).
 const SOFTWARE_LOOPS: usize = 12_000;
@@ -79,95 +66,11 @@ const DISPATCHES: u32 = 4;
 /// A round's wall time is kept between these (s).
 const ROUND_S: (f64, f64) = (0.004, 0.032);
 
-const F_DURATION: u32 = 1;
-const F_END_AT: u32 = 2;
-const F_RIGHT: u32 = 8;
-const F_PULSE: u32 = 16;
-const F_KINKS: u32 = 32;
-const F_REFINE: u32 = 64;
-const SNAP_WIDTH: u32 = 1;
-const SNAP_ENERGY: u32 = 2;
-const ST_STEP_CAP: u32 = 1;
-const ST_TIME_CAP: u32 = 2;
-const ST_NON_FINITE: u32 = 3;
-
-/// One chain's header: sizes, the loop state kept between steps and
-/// dispatches, and offsets of its reals (`Head` in the shader).
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
-pub struct ChainHead {
-    pub n: u32,
-    pub stages: u32,
-    pub probes: u32,
-    pub probe_at: u32,
-    pub pulse_bead: u32,
-    pub flags: u32,
-    pub done: u32,
-    pub status: u32,
-    pub lo: u32,
-    pub hi: u32,
-    pub steps_lo: u32,
-    pub steps_hi: u32,
-    pub max_lo: u32,
-    pub max_hi: u32,
-    pub snaps: u32,
-    pub wlo: u32,
-    pub whi: u32,
-    pub sc: u32,
-    pub o_w: u32,
-    pub o_im: u32,
-    pub o_k: u32,
-    pub o_d0: u32,
-    pub o_f0: u32,
-    pub o_r: u32,
-    pub o_p: u32,
-    pub o_v: u32,
-    pub o_a: u32,
-    pub o_e: u32,
-    pub o_watch: u32,
-    pub o_snapv: u32,
-    pub o_snapp: u32,
-    pub o_snapev: u32,
-    pub o_kw: u32,
-    pub o_ps: u32,
-    pub o_vs: u32,
-    pub o_as: u32,
-    pub o_imp: u32,
-    pub o_fl: u32,
-    /// The local refinement's reach and finer steps (`step::Refine`).
-    pub reach: u32,
-    pub msteps: u32,
-    /// Regions redone and their beads so far (`ChainOutcome::regions`;
-    /// 32 bits: they wrap past 4·10^9, region_beads after ~7·10^8 regions).
-    pub regions: u32,
-    pub region_beads: u32,
-}
-
-/// Steps per dispatch, and chains done.
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
-struct Ctl {
-    budget: u32,
-    done: u32,
-}
-
 /// The chain kernel's pipeline and bindings (one per precision).
 pub(super) struct ChainPipe {
     layout: wgpu::BindGroupLayout,
     pipe: wgpu::ComputePipeline,
     kernel: ChainKernel,
-}
-
-/// `x` as a WGSL `real` of `precision`, rounded as the CPU rounds it
-/// (`Real::of`).
-fn real_literal(x: f64, precision: Precision) -> String {
-    match precision {
-        Precision::Df64 => {
-            let p = Df64::of(x);
-            format!("vec2<f32>({:e}f, {:e}f)", p.hi, p.lo)
-        }
-        _ => format!("f64({x:?})"),
-    }
 }
 
 /// The beads (a power of two, at least `LOCAL_MIN`) of the workgroup-memory
@@ -215,191 +118,6 @@ fn grouped<K: Ord + Copy>(
     Ok(out.into_iter().map(|o| o.expect("every job ran")).collect())
 }
 
-/// The chain shader in `precision` (f64 or df64): its prelude (the real
-/// type and its arithmetic, constants, the bisection and the sine written
-/// out) and shaders/granular/chains.wgsl, for the pipeline `kernel`.
-pub fn chain_shader(precision: Precision, kernel: ChainKernel) -> String {
-    let ChainKernel { local, wg } = kernel;
-    use std::fmt::Write;
-    let mut s = String::from(
-        "// Generated by src/backend/gpu/granular.rs; shaders/granular/chains.wgsl follows.\n",
-    );
-    let real = match precision {
-        Precision::Df64 => "vec2<f32>",
-        _ => "f64",
-    };
-    let _ = writeln!(s, "alias real = {real};");
-    s.push_str(crate::backend::layout::arithmetic(precision));
-    let reals = [
-        ("END_SCALE", 1.0 + END_MARGIN),
-        ("ALMOST_ONE", 1.0 - 1e-12),
-        ("HALF_PI", std::f64::consts::FRAC_PI_2),
-        ("PI", std::f64::consts::PI),
-        ("ONE_SIXTH", 1.0 / 6.0),
-        ("LEADING_FRACTION", LEADING_FRACTION),
-    ];
-    for (name, x) in reals {
-        let _ = writeln!(s, "const {name}: real = {};", real_literal(x, precision));
-    }
-    // run::step_end's k, steps as two words, exactly (k < 2^48 in df64);
-    // Real::is_finite.
-    s.push_str(match precision {
-        Precision::Df64 => {
-            "fn r_count(lo: u32, hi: u32) -> real {\n    let l = ds_two_sum(f32(lo & 0xffff0000u), f32(lo & 0xffffu));\n    return r_add(r_mul(vec2<f32>(f32(hi), 0.0), vec2<f32>(4294967296.0, 0.0)), l);\n}\nfn r_finite(a: real) -> bool { return abs(a.x) <= 3.4028234663852886e38; }\n"
-        }
-        _ => {
-            "fn r_count(lo: u32, hi: u32) -> real { return f64(hi) * 4294967296.0 + f64(lo); }\nfn r_finite(a: real) -> bool { return abs(a) <= 1.7976931348623157e308; }\n"
-        }
-    });
-    let consts: [(&str, String); 21] = [
-        ("WG: u32", format!("{wg}u")),
-        ("LOCAL: bool", format!("{}", local > 0)),
-        ("LV: u32", format!("{}u", local.max(1))),
-        ("MAX_STAGES: u32", format!("{MAX_STAGES}u")),
-        ("MARGIN_EXTRA: u32", format!("{MARGIN_EXTRA}u")),
-        ("CHECK_MASK: u32", format!("{}u", CHECK_EVERY - 1)),
-        ("F_DURATION: u32", format!("{F_DURATION}u")),
-        ("F_END_AT: u32", format!("{F_END_AT}u")),
-        ("F_RIGHT: u32", format!("{F_RIGHT}u")),
-        ("F_PULSE: u32", format!("{F_PULSE}u")),
-        ("F_KINKS: u32", format!("{F_KINKS}u")),
-        ("F_REFINE: u32", format!("{F_REFINE}u")),
-        ("SNAP_WIDTH: u32", format!("{SNAP_WIDTH}u")),
-        ("FIRST_PEAK_REALS: u32", format!("{FIRST_PEAK_REALS}u")),
-        ("PROBE_REALS: u32", format!("{PROBE_REALS}u")),
-        ("WALL_WATCH_REALS: u32", format!("{WALL_WATCH_REALS}u")),
-        ("LEADING_RECORDS: u32", format!("{LEADING_RECORDS}u")),
-        ("SNAP_ENERGY: u32", format!("{SNAP_ENERGY}u")),
-        ("ST_STEP_CAP: u32", format!("{ST_STEP_CAP}u")),
-        ("ST_TIME_CAP: u32", format!("{ST_TIME_CAP}u")),
-        ("ST_NON_FINITE: u32", format!("{ST_NON_FINITE}u")),
-    ];
-    for (name, value) in consts {
-        let _ = writeln!(s, "const {name} = {value};");
-    }
-    // observe::peak: 60 bisections of the derivative, written out.
-    let half = real_literal(0.5, precision);
-    let zero = real_literal(0.0, precision);
-    let _ = writeln!(
-        s,
-        "fn peak(c: array<real, 6>) -> Peak {{\n    var a = {zero};\n    var b = {};\n    var m: real;",
-        real_literal(1.0, precision)
-    );
-    for _ in 0..60 {
-        let _ = writeln!(
-            s,
-            "    m = r_mul({half}, r_add(a, b));\n    if (r_gt(dpoly(c, m), {zero})) {{ a = m; }} else {{ b = m; }}"
-        );
-    }
-    let _ = writeln!(
-        s,
-        "    let x = r_mul({half}, r_add(a, b));\n    return Peak(x, poly(c, x));\n}}"
-    );
-    s.push_str(&half_sine_wgsl(precision));
-    let body = include_str!("../../../shaders/granular/chains.wgsl");
-    s.push_str(&crate::backend::layout::body_for(body, precision));
-    s
-}
-
-/// step::half_sine in WGSL: Horner with the factors as constants.
-fn half_sine_wgsl(precision: Precision) -> String {
-    use std::fmt::Write;
-    let one = real_literal(1.0, precision);
-    let mut s = format!(
-        "fn half_sine(x0: real) -> real {{\n    var x = x0;\n    if (r_gt(x, HALF_PI)) {{\n        x = r_sub(PI, x);\n    }}\n    let x2 = r_mul(x, x);\n    var p = {one};\n"
-    );
-    for f in SINE_FACTORS {
-        let _ = writeln!(
-            s,
-            "    p = r_sub({one}, r_mul(r_mul({}, x2), p));",
-            real_literal(f, precision)
-        );
-    }
-    s.push_str("    return r_mul(x, p);\n}\n");
-    s
-}
-
-/// Where a chain's reals lie (relative to its first) and how many there are.
-struct Offsets {
-    w: usize,
-    im: usize,
-    k: usize,
-    d0: usize,
-    f0: usize,
-    r: usize,
-    p: usize,
-    v: usize,
-    a: usize,
-    e: usize,
-    watch: usize,
-    snapv: usize,
-    snapp: usize,
-    snapev: usize,
-    kw: usize,
-    ps: usize,
-    vs: usize,
-    as_: usize,
-    imp: usize,
-    fl: usize,
-    len: usize,
-}
-
-impl Offsets {
-    /// `refine`: room for the local refinement's scratch.
-    fn of(n: usize, stages: usize, probes: usize, refine: bool) -> Offsets {
-        let mut at = SCALARS;
-        let mut take = |len: usize| {
-            let o = at;
-            at += len;
-            o
-        };
-        let w = take(stages);
-        let im = take(n);
-        let k = take(n + 1);
-        let d0 = take(n + 1);
-        let f0 = take(n + 1);
-        let r = take(n + 1);
-        let p = take(n + 1);
-        let v = take(n);
-        let a = take(n);
-        let e = take(n + 1);
-        let watch = take(probes * PROBE_REALS + FIRST_PEAK_REALS + 2 * WALL_WATCH_REALS);
-        let snapv = take(n);
-        let snapp = take(n + 1);
-        let snapev = take(n);
-        let kw = take(stages + 1);
-        let ps = take(n + 1);
-        let m = if refine { n + 1 } else { 0 };
-        let vs = take(m);
-        let as_ = take(m);
-        let imp = take(m);
-        let fl = take(m);
-        Offsets {
-            w,
-            im,
-            k,
-            d0,
-            f0,
-            r,
-            p,
-            v,
-            a,
-            e,
-            watch,
-            snapv,
-            snapp,
-            snapev,
-            kw,
-            ps,
-            vs,
-            as_,
-            imp,
-            fl,
-            len: at,
-        }
-    }
-}
-
 /// A part of chains on the device, as [`Gpu::upload_chains`] left it.
 struct Part {
     heads: Vec<ChainHead>,
@@ -430,23 +148,23 @@ fn pack<R: Real>(job: &ChainJob, base: usize, probe_at: usize) -> (ChainHead, f6
     let zero = R::zero();
     let mut r = vec![zero; o.len];
     let pulse = c.pulse.as_ref();
-    r[0] = R::of(plan.h);
-    r[1] = R::of(plan.duration.unwrap_or(f64::NAN));
-    r[2] = R::of(plan.max_time);
-    r[3] = watch.floor_v;
-    r[4] = watch.floor_f;
-    r[5] = pulse.map_or(zero, |p| p.duration);
-    r[6] = pulse.map_or(zero, |p| p.force);
-    r[7] = zero;
-    r[8] = R::of(plan.duration.unwrap_or(0.0));
-    r[9] = overlap_ratio(&c, &st, 0, n);
-    r[10] = pulse.map_or(zero, |p| p.omega);
-    r[11] = pulse.map_or(zero, |p| p.inv_mass);
-    r[12] = R::one();
+    r[Sc::H as usize] = R::of(plan.h);
+    r[Sc::Duration as usize] = R::of(plan.duration.unwrap_or(f64::NAN));
+    r[Sc::MaxTime as usize] = R::of(plan.max_time);
+    r[Sc::FloorV as usize] = watch.floor_v;
+    r[Sc::FloorF as usize] = watch.floor_f;
+    r[Sc::PulseDuration as usize] = pulse.map_or(zero, |p| p.duration);
+    r[Sc::PulseForce as usize] = pulse.map_or(zero, |p| p.force);
+    r[Sc::T as usize] = zero;
+    r[Sc::EndAt as usize] = R::of(plan.duration.unwrap_or(0.0));
+    r[Sc::MaxRatio as usize] = overlap_ratio(&c, &st, 0, n);
+    r[Sc::Omega as usize] = pulse.map_or(zero, |p| p.omega);
+    r[Sc::PulseIm as usize] = pulse.map_or(zero, |p| p.inv_mass);
+    r[Sc::One as usize] = R::one();
     if let Some(rf) = &refine {
-        r[13] = R::of(rf.near);
-        r[14] = R::of(rf.floor);
-        r[15] = R::of(1.0 / rf.steps as f64);
+        r[Sc::Near as usize] = R::of(rf.near);
+        r[Sc::Floor as usize] = R::of(rf.floor);
+        r[Sc::InvM as usize] = R::of(1.0 / rf.steps as f64);
     }
     let conv = |x: &[f64]| x.iter().map(|&x| R::of(x)).collect::<Vec<R>>();
     r[o.w..o.w + w.len()].copy_from_slice(&conv(w));
@@ -591,9 +309,9 @@ fn finish<R: Real>(job: &ChainJob, h: &ChainHead, reals: &[R], e_start: f64) -> 
         ST_NON_FINITE => Status::NonFinite,
         _ => Status::Ok,
     };
-    let t = reals[7];
+    let t = reals[Sc::T as usize];
     let c = Consts::<R>::of(b);
-    let max_ratio = reals[9].max(overlap_ratio(&c, &st, st.lo, st.hi));
+    let max_ratio = reals[Sc::MaxRatio as usize].max(overlap_ratio(&c, &st, st.lo, st.hi));
     run::finish(b, plan, &st, watch, t, status, e_ref, max_ratio)
 }
 
@@ -814,41 +532,25 @@ impl Gpu {
         let mut base = 0;
         for g in &transfers {
             let len: usize = lens[g.clone()].iter().sum();
-            let up = d.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("chain reals upload"),
-                size: (len * size) as u64,
-                usage: wgpu::BufferUsages::MAP_WRITE | wgpu::BufferUsages::COPY_SRC,
-                mapped_at_creation: true,
-            });
-            {
-                let mut mapped = up
-                    .slice(..)
-                    .get_mapped_range_mut()
-                    .map_err(|e| anyhow!("GPU upload failed: {e}"))?;
-                let mut at = 0;
-                for j in &jobs[g.clone()] {
-                    let (h, s, r) = pack::<R>(j, base + at, probes.len());
-                    mapped
-                        .slice(at * size..(at + r.len()) * size)
-                        .copy_from_slice(bytemuck::cast_slice(&r));
-                    at += r.len();
-                    probes.extend(j.beads.probes.iter().map(|&i| i as u32));
-                    heads.push(h);
-                    e_start.push(s);
-                }
-            }
-            up.unmap();
-            let mut enc = d.create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                label: Some("chain reals upload"),
-            });
-            enc.copy_buffer_to_buffer(&up, 0, &reals, (base * size) as u64, (len * size) as u64);
-            let index = self.queue.submit(Some(enc.finish()));
-            // Wait, so that this group's staging is freed before the next.
-            d.poll(wgpu::PollType::Wait {
-                submission_index: Some(index),
-                timeout: None,
-            })
-            .map_err(|e| anyhow!("GPU poll failed: {e}"))?;
+            self.upload_with(
+                "chain reals upload",
+                &reals,
+                (base * size) as u64,
+                (len * size) as u64,
+                |mapped| {
+                    let mut at = 0;
+                    for j in &jobs[g.clone()] {
+                        let (h, s, r) = pack::<R>(j, base + at, probes.len());
+                        mapped
+                            .slice(at * size..(at + r.len()) * size)
+                            .copy_from_slice(bytemuck::cast_slice(&r));
+                        at += r.len();
+                        probes.extend(j.beads.probes.iter().map(|&i| i as u32));
+                        heads.push(h);
+                        e_start.push(s);
+                    }
+                },
+            )?;
             base += len;
         }
         if probes.is_empty() {
@@ -894,7 +596,7 @@ impl Gpu {
             FIRST_STEPS
         };
         let hbuf = init("chain heads", bytemuck::cast_slice(&part.heads), readable);
-        let ctl0 = Ctl { budget, done: 0 };
+        let ctl0 = ChainCtl { budget, done: 0 };
         let cbuf = init(
             "chain ctl",
             bytemuck::bytes_of(&ctl0),
@@ -943,7 +645,7 @@ impl Gpu {
             self.stats.submitted(DISPATCHES as u64);
             let index = self.queue.submit(Some(enc.finish()));
             let rx = map_read(&cread);
-            let ctl: Ctl = self.mapped(&cread, index, rx)?[0];
+            let ctl: ChainCtl = self.mapped(&cread, index, rx)?[0];
             self.stats.completed();
             if ctl.done >= groups {
                 return Ok(hbuf);

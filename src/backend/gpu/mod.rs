@@ -12,8 +12,9 @@
 //! | `shaders.rs` | the WGSL assembled, the pipelines (all built by [`Gpu::prepare`]) |
 //! | `pack.rs` | one scene's header, params and state, by name through `layout` |
 //! | `device.rs` | one batch on the device: buffers, rounds in flight, read-back |
+//! | `staging.rs` | staging both models share: uploads through a mapped buffer, read-back where the mapping lies |
 //! | `probe.rs` | the df64 arithmetic probe (tests) |
-//! | `chains.rs` | granular chains: a workgroup per chain (`shaders/granular/chains.wgsl`) |
+//! | `granular.rs` | granular chains: a workgroup per chain (`shaders/granular/chains.wgsl`) |
 
 mod adapter;
 mod device;
@@ -22,6 +23,7 @@ mod pack;
 mod probe;
 mod profile;
 mod shaders;
+mod staging;
 
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex};
@@ -29,7 +31,7 @@ use std::sync::{Arc, Mutex};
 use anyhow::{anyhow, bail, Context, Result};
 use bytemuck::Pod;
 
-use super::layout::{self, PARAMS, STATE};
+use super::layout::cradle::{self as layout, PARAMS, STATE};
 use super::{Backend, ChainSource, DeviceStats, Job, Needs};
 use crate::engine::cradle::Run;
 use crate::engine::real::{Df64, Real};

@@ -6,8 +6,8 @@
 //! offsets (the generated prelude) together. The test below packs with a
 //! reordered table and reads every field back by name.
 
-use crate::backend::layout::{self, Field, GpuHeader, PARAMS, STATE, WORDS};
-use crate::backend::layout::{FLAG_DAMPED, FLAG_DRAG, FLAG_EXACT, FLAG_PENDULUM};
+use crate::backend::layout::cradle::{self as layout, Field, GpuHeader, PARAMS, STATE, WORDS};
+use crate::backend::layout::cradle::{FLAG_DAMPED, FLAG_DRAG, FLAG_EXACT, FLAG_PENDULUM};
 use crate::engine::cradle::{closing_speed_floor, kick_weights, Run};
 use crate::engine::real::Real;
 use crate::engine::{Chain, Limits, StepPlan};

@@ -2,7 +2,8 @@
 
 use anyhow::{bail, Result};
 
-use super::device::{map_read, WORKGROUP};
+use super::device::WORKGROUP;
+use super::staging::map_read;
 use super::Gpu;
 use crate::backend::layout;
 use crate::engine::real::{Df64, Real};

@@ -1,5 +1,5 @@
 //! The WGSL the GPU backend runs (`shaders/`), assembled behind the
-//! generated prelude (`layout::prelude`), and the compiled pipelines: one per
+//! generated prelude (`layout::cradle::prelude`), and the compiled pipelines: one per
 //! (precision, terms, size class, kernel), all built before a sweep's first
 //! scene ([`Gpu::prepare`]).
 
@@ -13,7 +13,7 @@ use crate::backend::{layout, Needs};
 use crate::scene::Precision;
 
 /// The shader's body (what both kernels share, then the kernel with an
-/// invocation per scene); its prelude comes from `layout::prelude`.
+/// invocation per scene); its prelude comes from `layout::cradle::prelude`.
 pub const SHADER_BODY: &str = concat!(
     include_str!("../../../shaders/cradle/kernels.wgsl"),
     include_str!("../../../shaders/cradle/lanes.wgsl")
@@ -33,7 +33,7 @@ pub fn shader_source_sized(p: Precision, max_bodies: usize) -> Cow<'static, str>
 
 /// The prelude for `p` and `max_bodies`, then `body` in precision `p`.
 fn assemble(p: Precision, max_bodies: usize, body: &str) -> Cow<'static, str> {
-    Cow::Owned(layout::prelude(p, max_bodies) + "\n" + &layout::body_for(body, p))
+    Cow::Owned(layout::cradle::prelude(p, max_bodies) + "\n" + &layout::body_for(body, p))
 }
 
 /// The shader with a workgroup of `max_bodies` invocations per scene
