@@ -1179,8 +1179,8 @@ fn gpu_profiles_parse_with_clear_errors() {
 /// and its push on the bead), a dimer pattern, a taper, an impurity, a
 /// stop time and the default end at the far peak, the local refinement
 /// (with the pulse on in a region), chains shorter and
-/// longer than a workgroup (64 invocations striding over 200 beads), an
-/// invalid chain passed through, the caps (a step cap mid-run), and a part
+/// longer than a workgroup (64 invocations striding over 200 beads), a
+/// piston, a piston with a pulse, a drive, an invalid chain passed through, the caps (a step cap mid-run), and a part
 /// of 10^4-bead chains whose reals go up and come back in several groups.
 #[test]
 fn gpu_chain_kernel_gives_the_cpus_chain_outcomes() {
@@ -1237,6 +1237,26 @@ fn gpu_chain_kernel_gives_the_cpus_chain_outcomes() {
         plan.precision = p;
         jobs.push(Some(ChainJob { beads, plan }));
     }
+    // A piston (the left wall moving in: its impulse, the front's rise at
+    // each probe), a piston with a pulse on the far bead (the energy
+    // snapshot takes the piston's work so far), a drive (its sine over
+    // many periods, each probe's amplitude); f64 and df64 (issue #45).
+    let pushed = [
+        "balls = 50\nradius = 0.005\n[walls]\nleft = true\n[piston]\nvelocity = 0.1\n[probes]\nbeads = [3, 8]\n[stop]\nduration = 3e-4\n",
+        "balls = 50\nradius = 0.005\n[walls]\nleft = true\n[piston]\nvelocity = 0.05\n[pulse]\nbead = 49\nforce = -1.0\nduration = 1e-5\n[probes]\nbeads = [3, 8]\n[stop]\nduration = 3e-4\n",
+        "balls = 40\nradius = 0.005\n[walls]\nleft = true\nright = true\nprecompression = 5.0\n[drive]\nbead = 10\nforce = 0.05\nfrequency = 20000.0\nduration = 8e-5\n[probes]\nbeads = [5, 15]\n[stop]\nduration = 1e-4\n",
+    ];
+    let pushes = jobs.len();
+    for p in [Precision::F64, Precision::Df64] {
+        for text in pushed {
+            let s = Scene::from_toml_str("pushed", text).unwrap_or_else(|e| panic!("{e}\n{text}"));
+            let solver = Solver::resolve(&s, &Overrides::default()).unwrap();
+            let beads = Beads::from_scene(&s);
+            let mut plan = granular::plan(&beads, &solver, None);
+            plan.precision = p;
+            jobs.push(Some(ChainJob { beads, plan }));
+        }
+    }
     // 24 precompressed chains of 10^4 beads (a short pulse run): ~25 MB of
     // reals, more than one transfer group (`TRANSFER_BYTES`, 16 MB) up and
     // back, the small chains before them in the first.
@@ -1292,6 +1312,23 @@ fn gpu_chain_kernel_gives_the_cpus_chain_outcomes() {
     assert_eq!(gpu[5].steps, 777);
     for k in [0, 2, 3, 4, columns, columns + 1] {
         assert_eq!(status(&gpu[k]), Status::Ok, "chain {k}");
+    }
+    // The pistons did work and their fronts reached the probes; the drive's
+    // amplitudes were measured.
+    for k in [pushes, pushes + 1, pushes + 3, pushes + 4] {
+        let o = &gpu[k];
+        assert_eq!(o.status, Status::Ok, "chain {k}");
+        assert!(o.piston_work > 0.0, "chain {k}: {}", o.piston_work);
+        assert!(o.shock_speed.is_finite(), "chain {k}: {}", o.shock_speed);
+    }
+    for k in [pushes + 2, pushes + 5] {
+        let o = &gpu[k];
+        assert_eq!(o.status, Status::Ok, "chain {k}");
+        assert!(
+            o.amplitudes.len() == 2 && o.amplitudes.iter().all(|&a| a > 0.0),
+            "chain {k}: {:?}",
+            o.amplitudes
+        );
     }
     // Regions around crossings redone (step::Refine), the same ones on both
     // backends (compared above): struck, precompressed and pulse-driven.

@@ -143,13 +143,44 @@ fn hertz(k: real, d: real) -> real {
     return r_mul(r_mul(k, dd), r_sqrt(dd));
 }
 
-// engine::granular::step::pulse_sin and pulse_cos (ω = π/τ).
-fn pulse_sin(t: real, omega: real) -> real {
-    return half_sine(r_mul(omega, t));
+// step::cycle_sin — sin(2π·φ) from φ's fraction of a cycle.
+fn cycle_sin(phase: real) -> real {
+    let f = r_sub(phase, r_floor(phase));
+    let second = !r_lt(f, real(0.5));
+    let s = half_sine(r_mul(TAU, select(f, r_sub(f, real(0.5)), second)));
+    return select(s, r_sub(real(0.0), s), second);
 }
 
-fn pulse_cos(t: real, omega: real) -> real {
-    return half_sine(r_sub(HALF_PI, r_mul(omega, t)));
+// step::push_sin (`cos` false) and push_cos: a half-sine pulse's sin(ωt)
+// and cos(ωt) (step::pulse_sin, step::pulse_cos: ω = π/τ), or a drive's
+// (SC_CYCLES, its frequency, not 0; step::cycle_sin); one half_sine either
+// way (the compiler inlines each call site).
+fn push_sine(t: real, cos: bool) -> real {
+    let f = R[H.sc + SC_CYCLES];
+    var x: real;
+    var second = false;
+    if (!r_nz(f)) {
+        let wt = r_mul(R[H.sc + SC_OMEGA], t);
+        x = select(wt, r_sub(HALF_PI, wt), cos);
+    } else {
+        var phase = r_mul(f, t);
+        if (cos) {
+            phase = r_add(phase, real(0.25));
+        }
+        let g = r_sub(phase, r_floor(phase));
+        second = !r_lt(g, real(0.5));
+        x = r_mul(TAU, select(g, r_sub(g, real(0.5)), second));
+    }
+    let s = half_sine(x);
+    return select(s, r_sub(real(0.0), s), second);
+}
+
+fn push_sin(t: real) -> real {
+    return push_sine(t, false);
+}
+
+fn push_cos(t: real) -> real {
+    return push_sine(t, true);
 }
 
 // ---- the step (step.rs): every invocation, its beads and contacts ----
@@ -170,7 +201,8 @@ fn kick(lo: u32, hi: u32, c: real) {
     }
 }
 
-// p_j += dt·(v_{j−1} − v_j), contacts lo ..= hi (walls do not move).
+// p_j += dt·(v_{j−1} − v_j), contacts lo ..= hi (the right wall stands
+// still, the left one moves at SC_PISTON).
 fn drift(lo: u32, hi: u32, dt: real) {
     let n = H.n;
     if (lo == hi) {
@@ -180,7 +212,12 @@ fn drift(lo: u32, hi: u32, dt: real) {
     // (the walls' too): its p is read by no other invocation in the step.
     for (var j = lo + me; j <= hi; j += WG) {
         if (j == 0u) {
-            R[H.o_p] = r_sub(R[H.o_p], r_mul(dt, V(0u)));
+            let piston = R[H.sc + SC_PISTON];
+            if (r_nz(piston)) {
+                R[H.o_p] = r_add(R[H.o_p], r_mul(dt, r_sub(piston, V(0u))));
+            } else {
+                R[H.o_p] = r_sub(R[H.o_p], r_mul(dt, V(0u)));
+            }
         } else if (j == n) {
             R[H.o_p + n] = r_add(R[H.o_p + n], r_mul(dt, V(n - 1u)));
         } else {
@@ -334,7 +371,7 @@ fn bead_rates(i: u32, start: bool, t: real, on: bool, lo: u32, hi: u32) -> array
     var jerk = r_mul(r_sub(rate_at(i, start, lo, hi), rate_at(i + 1u, start, lo, hi)), R[H.o_im + i]);
     if (on && H.pulse_bead == i) {
         let w = R[H.sc + SC_OMEGA];
-        jerk = r_add(jerk, r_mul(r_mul(r_mul(R[H.sc + SC_PULSE_FORCE], w), pulse_cos(t, w)), R[H.sc + SC_PULSE_IM]));
+        jerk = r_add(jerk, r_mul(r_mul(r_mul(R[H.sc + SC_PULSE_FORCE], w), push_cos(t)), R[H.sc + SC_PULSE_IM]));
     }
     var acc = R[H.o_a + i];
     if (start && i >= lo && i < hi) {
@@ -465,7 +502,7 @@ fn redo(a: u32, b: u32, t0: real, h: real, t_end: real, lo: u32, hi: u32) {
                 R[H.o_a + i] = r_mul(r_sub(E(i), E(i + 1u)), R[H.o_im + i]);
             }
             if (pulse) {
-                let fp = r_mul(pforce, pulse_sin(t, omega));
+                let fp = r_mul(pforce, push_sin(t));
                 R[H.o_a + H.pulse_bead] = r_add(R[H.o_a + H.pulse_bead], r_mul(fp, R[H.sc + SC_PULSE_IM]));
             }
             let kc = kick_weight(k, hf);
@@ -500,7 +537,7 @@ fn fix_outside(i: u32, dv: real, on: bool, t_end: real) {
     var acc = r_mul(r_sub(E(i), E(i + 1u)), R[H.o_im + i]);
     if (on && H.pulse_bead == i) {
         let w = R[H.sc + SC_OMEGA];
-        acc = r_add(acc, r_mul(r_mul(R[H.sc + SC_PULSE_FORCE], pulse_sin(t_end, w)), R[H.sc + SC_PULSE_IM]));
+        acc = r_add(acc, r_mul(r_mul(R[H.sc + SC_PULSE_FORCE], push_sin(t_end)), R[H.sc + SC_PULSE_IM]));
     }
     R[H.o_a + i] = acc;
 }
@@ -578,8 +615,10 @@ fn step(st: Step) {
     let h = st.h;
     let pdur = R[H.sc + SC_PULSE_DURATION];
     let pforce = R[H.sc + SC_PULSE_FORCE];
-    let omega = R[H.sc + SC_OMEGA];
     let has_pulse = (H.flags & F_PULSE) != 0u && H.pulse_bead >= lo && H.pulse_bead < hi;
+    // A piston's impulse on bead 0 (contact 0's force at each kick, its
+    // kink): kept by invocation 0, which owns contact 0 (lo is 0).
+    let piston = (H.flags & F_PISTON) != 0u && me == 0u;
     var t = st.t0;
     let kinked = (H.flags & F_KINKS) != 0u;
     let refine = (H.flags & F_REFINE) != 0u;
@@ -598,6 +637,9 @@ fn step(st: Step) {
             R[H.o_imp + j] = r_mul(c0, E(j));
         }
     }
+    if (piston) {
+        wall_kick(c0);
+    }
     kick(lo, hi, c0);
     sync();
     for (var j = 0u; j < s; j++) {
@@ -608,16 +650,22 @@ fn step(st: Step) {
         let c = kick_weight(j, h);
         excess_forces(lo, hi, refine, c);
         sync();
+        if (piston) {
+            wall_kick(c);
+        }
         // step::pulse_on: by the step's start, not the substep's time.
         let on = has_pulse && r_lt(st.t0, pdur);
         var f = real(0.0);
         if (on) {
-            f = r_mul(pforce, pulse_sin(t, omega));
+            f = r_mul(pforce, push_sin(t));
         }
         accelerate_kick(lo, hi, on, f, c);
         sync();
     }
     if (kinked) {
+        if (piston && crossed(0u)) {
+            R[H.sc + SC_WALL_IMP] = r_add(R[H.sc + SC_WALL_IMP], miss(0u, h));
+        }
         kinks(lo, hi, h);
         sync();
     }
@@ -626,14 +674,22 @@ fn step(st: Step) {
     }
 }
 
+// The piston's share of a kick by c: c times contact 0's force.
+fn wall_kick(c: real) {
+    let wall = r_add(E(0u), R[H.o_f0]);
+    R[H.sc + SC_WALL_IMP] = r_add(R[H.sc + SC_WALL_IMP], r_mul(c, wall));
+}
+
 // ---- the observers (observe.rs): invocation 0 ----
 
-// x_{j−1} − x_j of the velocities (`accel` false) or the accelerations
-// across contact j, walls at rest.
+// x_{j−1} − x_j of the velocities (`accel` false: observe::closing, the
+// left wall moving at SC_PISTON) or the accelerations across contact j.
 fn across(accel: bool, j: u32) -> real {
     var l = real(0.0);
     if (j > 0u) {
         l = select(V(j - 1u), R[H.o_a + j - 1u], accel);
+    } else if (!accel && (H.flags & F_PISTON) != 0u) {
+        l = R[H.sc + SC_PISTON];
     }
     var r = real(0.0);
     if (j < H.n) {
@@ -669,7 +725,7 @@ fn bead_rates_with(i: u32, t: real, left: real, right: real) -> Q {
     let pdur = R[H.sc + SC_PULSE_DURATION];
     if ((H.flags & F_PULSE) != 0u && H.pulse_bead == i && r_lt(t, pdur)) {
         let w = R[H.sc + SC_OMEGA];
-        jerk = r_add(jerk, r_mul(r_mul(r_mul(R[H.sc + SC_PULSE_FORCE], w), pulse_cos(t, w)), R[H.sc + SC_PULSE_IM]));
+        jerk = r_add(jerk, r_mul(r_mul(r_mul(R[H.sc + SC_PULSE_FORCE], w), push_cos(t)), R[H.sc + SC_PULSE_IM]));
     }
     return Q(V(i), R[H.o_a + i], jerk);
 }
@@ -829,6 +885,83 @@ fn wall_see(o: u32, t: real, q: Q, f0: real) {
     R[o + 4u] = q.z;
 }
 
+// observe::bisect for observe::Rise: where the quintic c turns ≥ 0 on
+// [0, 1], by 60 bisections (a loop: it runs at most once per probe and run,
+// counted so in the software adapter's budget, backend::gpu::granular).
+fn rise_at(c: array<real, 6>) -> real {
+    var a = real(0.0);
+    var b = real(1.0);
+    for (var i = 0u; i < 60u; i++) {
+        let m = r_mul(real(0.5), r_add(a, b));
+        if (r_lt(poly(c, m), real(0.0))) {
+            a = m;
+        } else {
+            b = m;
+        }
+    }
+    return r_mul(real(0.5), r_add(a, b));
+}
+
+// observe::Rise::see on the packed rise at o (has_last, t, q, reached, when).
+fn rise_see(o: u32, t: real, q: Q, level: real) {
+    if (r_nz(R[o + 5u])) {
+        return;
+    }
+    if (!r_nz(R[o])) {
+        if (r_ge(q.x, level)) {
+            R[o + 5u] = real(1.0);
+            R[o + 6u] = t;
+        }
+    } else {
+        let t0 = R[o + 1u];
+        let q0 = Q(R[o + 2u], R[o + 3u], R[o + 4u]);
+        if (r_lt(q0.x, level) && r_ge(q.x, level)) {
+            let h = r_sub(t, t0);
+            let c = quintic(
+                r_sub(q0.x, level),
+                r_sub(q.x, level),
+                r_mul(q0.y, h),
+                r_mul(q.y, h),
+                r_mul(r_mul(q0.z, h), h),
+                r_mul(r_mul(q.z, h), h),
+            );
+            R[o + 5u] = real(1.0);
+            R[o + 6u] = r_add(t0, r_mul(h, rise_at(c)));
+        }
+    }
+    R[o] = real(1.0);
+    R[o + 1u] = t;
+    R[o + 2u] = q.x;
+    R[o + 3u] = q.y;
+    R[o + 4u] = q.z;
+}
+
+// observe::Amplitude::see on the packed amplitude at o (has_last, t, the
+// last v·w·(cos, sin) and w, the three sums): the bead's velocity v at t.
+fn amp_see(o: u32, t: real, v: real) {
+    let start = R[H.sc + SC_AMP_FROM];
+    if (r_lt(t, start)) {
+        return;
+    }
+    let x = r_div(r_sub(t, start), r_sub(R[H.sc + SC_AMP_END], start));
+    let hann = cycle_sin(r_mul(real(0.5), x));
+    let w = r_mul(hann, hann);
+    let phase = r_mul(R[H.sc + SC_CYCLES], t);
+    let vw = r_mul(v, w);
+    let now = array<real, 3>(r_mul(vw, cycle_sin(r_add(phase, real(0.25)))), r_mul(vw, cycle_sin(phase)), w);
+    if (r_nz(R[o])) {
+        let h = r_mul(real(0.5), r_sub(t, R[o + 1u]));
+        for (var k = 0u; k < 3u; k++) {
+            R[o + 5u + k] = r_add(R[o + 5u + k], r_mul(h, r_add(R[o + 2u + k], now[k])));
+        }
+    }
+    R[o] = real(1.0);
+    R[o + 1u] = t;
+    for (var k = 0u; k < 3u; k++) {
+        R[o + 2u + k] = now[k];
+    }
+}
+
 // run::Watch::see at t; returns SNAP_WIDTH when the last probe's velocity
 // took a new record peak in this step.
 fn watch_see(t: real) -> u32 {
@@ -842,7 +975,14 @@ fn watch_see(t: real) -> u32 {
         let fo = vo + FIRST_PEAK_REALS;
         let fl = force_rates(i);
         let fr = force_rates(i + 1u);
-        let taken = first_peak_see_leading(vo, t, bead_rates_with(i, t, fl.y, fr.y), floor_v);
+        let qv = bead_rates_with(i, t, fl.y, fr.y);
+        let taken = first_peak_see_leading(vo, t, qv, floor_v);
+        if ((H.flags & F_PISTON) != 0u) {
+            rise_see(H.o_rise + RISE_REALS * k, t, qv, R[H.sc + SC_RISE_LEVEL]);
+        }
+        if ((H.flags & F_DRIVE) != 0u) {
+            amp_see(H.o_amp + AMP_REALS * k, t, qv.x);
+        }
         let base = r_mul(real(0.5), r_add(R[H.o_f0 + i], R[H.o_f0 + i + 1u]));
         let q = Q(
             r_sub(r_mul(real(0.5), r_add(fl.x, fr.x)), base),
@@ -938,8 +1078,13 @@ fn after_step(st: Step) {
     let sc = H.sc;
     let pdur = R[sc + SC_PULSE_DURATION];
     let pulse_on = (H.flags & F_PULSE) != 0u && r_lt(r_add(st.t0, st.h), pdur);
-    let first = atomicLoad(&first_moving);
+    var first = atomicLoad(&first_moving);
     let last = atomicLoad(&last_moving);
+    if ((H.flags & F_PISTON) != 0u) {
+        // State::shrink: a piston's first bead is always in (the piston
+        // may reach it; last_moving is at least 0).
+        first = 0u;
+    }
     var lo = 0u;
     var hi = 0u;
     if (first == NONE) {
@@ -976,6 +1121,7 @@ fn after_step(st: Step) {
     }
     if ((H.flags & F_PULSE) != 0u && (hd.snaps & SNAP_ENERGY) == 0u && r_ge(t, pdur)) {
         snaps |= SNAP_ENERGY;
+        R[sc + SC_SNAP_WALL_IMP] = R[sc + SC_WALL_IMP];
     }
     hd.snaps |= snaps;
     if ((hd.flags & F_END_AT) == 0u) {

@@ -17,11 +17,14 @@ use super::staging::map_read;
 use super::Gpu;
 pub use crate::backend::layout::granular::{chain_shader, ChainKernel};
 use crate::backend::layout::granular::{
-    ChainCtl, ChainHead, Offsets, Sc, F_DURATION, F_END_AT, F_KINKS, F_PULSE, F_REFINE, F_RIGHT,
-    MAX_STAGES, PROBE_REALS, SNAP_ENERGY, SNAP_WIDTH, ST_NON_FINITE, ST_STEP_CAP, ST_TIME_CAP,
+    ChainCtl, ChainHead, Offsets, Sc, F_DRIVE, F_DURATION, F_END_AT, F_KINKS, F_PISTON, F_PULSE,
+    F_REFINE, F_RIGHT, MAX_STAGES, PROBE_REALS, SNAP_ENERGY, SNAP_WIDTH, ST_NON_FINITE,
+    ST_STEP_CAP, ST_TIME_CAP,
 };
 use crate::backend::ChainJob;
-use crate::engine::granular::observe::{FirstPeak, WallWatch, FIRST_PEAK_REALS, WALL_WATCH_REALS};
+use crate::engine::granular::observe::{
+    FirstPeak, Rise, WallWatch, AMP_REALS, FIRST_PEAK_REALS, RISE_REALS, WALL_WATCH_REALS,
+};
 use crate::engine::granular::run::{self, overlap_ratio, Watch};
 use crate::engine::granular::step::State;
 use crate::engine::granular::{Beads, ChainOutcome, Consts, Plan};
@@ -132,6 +135,26 @@ struct Part {
     transfers: Vec<std::ops::Range<usize>>,
 }
 
+/// How many rises and amplitudes a chain's observers keep (`Watch::new`):
+/// one per probe under a piston, one per probe under a drive.
+fn watch_counts(b: &Beads) -> (usize, usize) {
+    let probes = b.probes.len();
+    let rises = if b.piston > 0.0 { probes } else { 0 };
+    let amps = match (&b.pulse, b.duration) {
+        (Some(p), Some(_)) if p.is_drive() => probes,
+        _ => 0,
+    };
+    (rises, amps)
+}
+
+/// Where a job's reals lie.
+fn offsets(job: &ChainJob) -> Offsets {
+    let (b, plan) = (&job.beads, &job.plan);
+    let (rises, amps) = watch_counts(b);
+    let refine = plan.substeps().refine.is_some();
+    Offsets::of(b.n, plan.weights.len(), b.probes.len(), refine, rises, amps)
+}
+
 /// Pack one chain at reals offset `base` (its header, its reals, its
 /// probes), in the precision `R` of its plan; also returns the energy at
 /// the start, which a run without a pulse is measured against.
@@ -144,7 +167,8 @@ fn pack<R: Real>(job: &ChainJob, base: usize, probe_at: usize) -> (ChainHead, f6
     let mut watch = Watch::<R>::new(b);
     watch.see(b, &c, &st, R::zero());
     let refine = plan.substeps().refine;
-    let o = Offsets::of(n, w.len(), b.probes.len(), refine.is_some());
+    let o = offsets(job);
+    debug_assert_eq!(watch_counts(b), (watch.rises.len(), watch.amps.len()));
     let zero = R::zero();
     let mut r = vec![zero; o.len];
     let pulse = c.pulse.as_ref();
@@ -161,6 +185,14 @@ fn pack<R: Real>(job: &ChainJob, base: usize, probe_at: usize) -> (ChainHead, f6
     r[Sc::Omega as usize] = pulse.map_or(zero, |p| p.omega);
     r[Sc::PulseIm as usize] = pulse.map_or(zero, |p| p.inv_mass);
     r[Sc::One as usize] = R::one();
+    r[Sc::Cycles as usize] = pulse.map_or(zero, |p| p.cycles);
+    r[Sc::Piston as usize] = c.piston;
+    r[Sc::WallImp as usize] = st.wall_imp;
+    r[Sc::RiseLevel as usize] = watch.rise_level;
+    if let Some(a) = watch.amps.first() {
+        r[Sc::AmpFrom as usize] = a.from;
+        r[Sc::AmpEnd as usize] = a.end;
+    }
     if let Some(rf) = &refine {
         r[Sc::Near as usize] = R::of(rf.near);
         r[Sc::Floor as usize] = R::of(rf.floor);
@@ -180,18 +212,7 @@ fn pack<R: Real>(job: &ChainJob, base: usize, probe_at: usize) -> (ChainHead, f6
     r[o.v..o.v + n].copy_from_slice(&st.v);
     r[o.a..o.a + n].copy_from_slice(&st.a);
     r[o.e..o.e + n + 1].copy_from_slice(&st.e);
-    let mut at = o.watch;
-    for (vp, fp) in &watch.probes {
-        r[at..at + FIRST_PEAK_REALS].copy_from_slice(&vp.pack());
-        r[at + FIRST_PEAK_REALS..at + PROBE_REALS].copy_from_slice(&fp.pack());
-        at += PROBE_REALS;
-    }
-    r[at..at + FIRST_PEAK_REALS].copy_from_slice(&watch.far.pack());
-    at += FIRST_PEAK_REALS;
-    for wall in &watch.walls {
-        r[at..at + WALL_WATCH_REALS].copy_from_slice(&wall.pack());
-        at += WALL_WATCH_REALS;
-    }
+    pack_watch(&watch, &o, &mut r);
     let u = |x: usize| (base + x) as u32;
     let mut flags = 0;
     if plan.duration.is_some() {
@@ -208,6 +229,12 @@ fn pack<R: Real>(job: &ChainJob, base: usize, probe_at: usize) -> (ChainHead, f6
     }
     if refine.is_some() {
         flags |= F_REFINE;
+    }
+    if c.piston != zero {
+        flags |= F_PISTON;
+    }
+    if !watch.amps.is_empty() {
+        flags |= F_DRIVE;
     }
     let head = ChainHead {
         n: n as u32,
@@ -241,11 +268,38 @@ fn pack<R: Real>(job: &ChainJob, base: usize, probe_at: usize) -> (ChainHead, f6
         o_as: u(o.as_),
         o_imp: u(o.imp),
         o_fl: u(o.fl),
+        o_rise: u(o.rise),
+        o_amp: u(o.amp),
         reach: refine.map_or(0, |r| r.reach as u32),
         msteps: refine.map_or(0, |r| r.steps as u32),
         ..Default::default()
     };
     (head, run::energy(b, &st), r)
+}
+
+/// The observers' state into a chain's reals `r`: each probe's peaks, the
+/// far end's, the walls', then each probe's rise and amplitude.
+fn pack_watch<R: Real>(watch: &Watch<R>, o: &Offsets, r: &mut [R]) {
+    let mut at = o.watch;
+    for (vp, fp) in &watch.probes {
+        r[at..at + FIRST_PEAK_REALS].copy_from_slice(&vp.pack());
+        r[at + FIRST_PEAK_REALS..at + PROBE_REALS].copy_from_slice(&fp.pack());
+        at += PROBE_REALS;
+    }
+    r[at..at + FIRST_PEAK_REALS].copy_from_slice(&watch.far.pack());
+    at += FIRST_PEAK_REALS;
+    for wall in &watch.walls {
+        r[at..at + WALL_WATCH_REALS].copy_from_slice(&wall.pack());
+        at += WALL_WATCH_REALS;
+    }
+    for (k, rise) in watch.rises.iter().enumerate() {
+        let at = o.rise + k * RISE_REALS;
+        r[at..at + RISE_REALS].copy_from_slice(&rise.pack());
+    }
+    for (k, amp) in watch.amps.iter().enumerate() {
+        let at = o.amp + k * AMP_REALS;
+        r[at..at + AMP_REALS].copy_from_slice(&amp.pack());
+    }
 }
 
 /// The outcome of a chain from its header and reals read back.
@@ -274,7 +328,7 @@ fn finish<R: Real>(job: &ChainJob, h: &ChainHead, reals: &[R], e_start: f64) -> 
         // Damped chains run on the CPU engine (`Gpu::run_chains`).
         lost_c: Vec::new(),
         lost_b: Vec::new(),
-        wall_imp: R::zero(),
+        wall_imp: reals[Sc::WallImp as usize],
         chi: Vec::new(),
     };
     let mut watch = Watch::<R>::new(b);
@@ -292,6 +346,12 @@ fn finish<R: Real>(job: &ChainJob, h: &ChainHead, reals: &[R], e_start: f64) -> 
         *wall = WallWatch::unpack(&reals[o..]);
         o += WALL_WATCH_REALS;
     }
+    for (k, rise) in watch.rises.iter_mut().enumerate() {
+        *rise = Rise::unpack(&reals[rel(h.o_rise) + k * RISE_REALS..]);
+    }
+    for (k, amp) in watch.amps.iter_mut().enumerate() {
+        *amp = amp.unpacked(&reals[rel(h.o_amp) + k * AMP_REALS..]);
+    }
     if h.snaps & SNAP_WIDTH != 0 {
         let v = to64(at(h.o_snapv, n));
         watch.width = run::fwhm(&v[h.wlo as usize..h.whi as usize]);
@@ -299,7 +359,10 @@ fn finish<R: Real>(job: &ChainJob, h: &ChainHead, reals: &[R], e_start: f64) -> 
     let e_ref = if b.pulse.is_none() {
         Some(e_start)
     } else if h.snaps & SNAP_ENERGY != 0 {
-        Some(b.energy(&to64(at(h.o_snapp, n + 1)), &to64(at(h.o_snapev, n))))
+        // run::budget then: a piston's work taken off (damped chains run
+        // on the CPU).
+        let e = b.energy(&to64(at(h.o_snapp, n + 1)), &to64(at(h.o_snapev, n)));
+        Some(e - b.piston * reals[Sc::SnapWallImp as usize].to64())
     } else {
         None
     };
@@ -451,15 +514,7 @@ impl Gpu {
         kernel: ChainKernel,
     ) -> Result<Vec<ChainOutcome>> {
         let pipe = self.chain_pipe(R::PRECISION, kernel)?;
-        let bytes = |j: &ChainJob| {
-            let o = Offsets::of(
-                j.beads.n,
-                j.plan.weights.len(),
-                j.beads.probes.len(),
-                j.plan.substeps().refine.is_some(),
-            );
-            (o.len * 8) as u64
-        };
+        let bytes = |j: &ChainJob| (offsets(j).len * 8) as u64;
         let mut out = Vec::with_capacity(jobs.len());
         let max = self.max_workgroups as usize;
         for part in super::parts(jobs.len(), max, self.max_binding, |k| bytes(jobs[k])) {
@@ -505,18 +560,7 @@ impl Gpu {
     fn upload_chains<R: Real>(&self, jobs: &[&ChainJob]) -> Result<Part> {
         let d = &self.device;
         let size = std::mem::size_of::<R>();
-        let lens: Vec<usize> = jobs
-            .iter()
-            .map(|j| {
-                Offsets::of(
-                    j.beads.n,
-                    j.plan.weights.len(),
-                    j.beads.probes.len(),
-                    j.plan.substeps().refine.is_some(),
-                )
-                .len
-            })
-            .collect();
+        let lens: Vec<usize> = jobs.iter().map(|j| offsets(j).len).collect();
         let transfers = super::parts(jobs.len(), usize::MAX, TRANSFER_BYTES, |k| {
             (lens[k] * size) as u64
         });
@@ -591,7 +635,13 @@ impl Gpu {
                 .map(|j| loops_per_step(j, pipe.kernel.wg))
                 .max()
                 .unwrap_or(1);
-            (SOFTWARE_LOOPS / worst).max(1) as u32
+            // A piston's rises: 60 bisections per probe, once per run.
+            let once = jobs
+                .iter()
+                .map(|j| 60 * watch_counts(&j.beads).0)
+                .max()
+                .unwrap_or(0);
+            (SOFTWARE_LOOPS.saturating_sub(once) / worst).max(1) as u32
         } else {
             FIRST_STEPS
         };

@@ -322,10 +322,9 @@ impl Backend for Gpu {
     }
 
     /// A workgroup per chain (`granular.rs`); the chains are built on the
-    /// rayon pool, all of the batch before the device starts. Damped, pushed
-    /// and driven chains (issue #45, [`Beads::cpu_only`]) run on the CPU
-    /// engine beside them: the kernel has no damping substep, no moving
-    /// wall and no drive yet.
+    /// rayon pool, all of the batch before the device starts. Damped chains
+    /// (issue #45, [`Beads::cpu_only`]) run on the CPU engine beside them:
+    /// the kernel has no damping substep yet.
     ///
     /// [`Beads::cpu_only`]: crate::engine::granular::Beads::cpu_only
     fn run_chains(

@@ -14,7 +14,7 @@ use bytemuck::{Pod, Zeroable};
 
 use super::real_literal;
 use crate::engine::granular::observe::{
-    FIRST_PEAK_REALS, LEADING_FRACTION, LEADING_RECORDS, WALL_WATCH_REALS,
+    AMP_REALS, FIRST_PEAK_REALS, LEADING_FRACTION, LEADING_RECORDS, RISE_REALS, WALL_WATCH_REALS,
 };
 use crate::engine::granular::run::CHECK_EVERY;
 use crate::engine::granular::step::{MARGIN_EXTRA, SINE_FACTORS};
@@ -43,6 +43,11 @@ pub const F_RIGHT: u32 = 8;
 pub const F_PULSE: u32 = 16;
 pub const F_KINKS: u32 = 32;
 pub const F_REFINE: u32 = 64;
+/// A piston: the left wall moves at `Sc::Piston`; each probe has a rise.
+pub const F_PISTON: u32 = 128;
+/// A drive (a pulse whose `Sc::Cycles` is the frequency): each probe has
+/// an amplitude.
+pub const F_DRIVE: u32 = 256;
 /// Bits of `ChainHead::snaps`: the snapshots taken so far.
 pub const SNAP_WIDTH: u32 = 1;
 pub const SNAP_ENERGY: u32 = 2;
@@ -59,6 +64,8 @@ pub const CODES: &[(&str, u32)] = &[
     ("F_PULSE", F_PULSE),
     ("F_KINKS", F_KINKS),
     ("F_REFINE", F_REFINE),
+    ("F_PISTON", F_PISTON),
+    ("F_DRIVE", F_DRIVE),
     ("SNAP_WIDTH", SNAP_WIDTH),
     ("SNAP_ENERGY", SNAP_ENERGY),
     ("ST_STEP_CAP", ST_STEP_CAP),
@@ -157,6 +164,10 @@ chain_head! {
     o_imp,
     /// its flags
     o_fl,
+    /// each probe's rise to half the piston's speed (F_PISTON; RISE_REALS each)
+    o_rise,
+    /// each probe's amplitude at the drive's frequency (F_DRIVE; AMP_REALS each)
+    o_amp,
     /// the local refinement's reach (step::Refine)
     reach,
     /// the local refinement's finer steps
@@ -234,6 +245,20 @@ scalars! {
     Floor = "SC_FLOOR",
     /// the local refinement's 1/steps
     InvM = "SC_INV_M",
+    /// a drive's frequency (Hz; 0 for a half-sine pulse)
+    Cycles = "SC_CYCLES",
+    /// the piston's speed (0: none)
+    Piston = "SC_PISTON",
+    /// the impulse the left wall has given bead 0 so far, when it is a piston
+    WallImp = "SC_WALL_IMP",
+    /// the wall's impulse when the energy snapshot was taken
+    SnapWallImp = "SC_SNAP_WALL_IMP",
+    /// the level a probe's rise looks for: half the piston's speed
+    RiseLevel = "SC_RISE_LEVEL",
+    /// the window of a drive's amplitudes: its start
+    AmpFrom = "SC_AMP_FROM",
+    /// the window of a drive's amplitudes: its end
+    AmpEnd = "SC_AMP_END",
 }
 
 /// Reals of a chain's scalars.
@@ -263,13 +288,23 @@ pub struct Offsets {
     pub as_: usize,
     pub imp: usize,
     pub fl: usize,
+    pub rise: usize,
+    pub amp: usize,
     pub len: usize,
 }
 
 impl Offsets {
     /// A chain of `n` beads, a method of `stages` substeps, `probes`
-    /// probes; `refine`: room for the local refinement's scratch.
-    pub fn of(n: usize, stages: usize, probes: usize, refine: bool) -> Offsets {
+    /// probes; `refine`: room for the local refinement's scratch; `rises`,
+    /// `amps`: how many of each the observers keep.
+    pub fn of(
+        n: usize,
+        stages: usize,
+        probes: usize,
+        refine: bool,
+        rises: usize,
+        amps: usize,
+    ) -> Offsets {
         let mut at = SCALARS;
         let mut take = |len: usize| {
             let o = at;
@@ -297,6 +332,8 @@ impl Offsets {
         let as_ = take(m);
         let imp = take(m);
         let fl = take(m);
+        let rise = take(rises * RISE_REALS);
+        let amp = take(amps * AMP_REALS);
         Offsets {
             w,
             im,
@@ -318,6 +355,8 @@ impl Offsets {
             as_,
             imp,
             fl,
+            rise,
+            amp,
             len: at,
         }
     }
@@ -344,6 +383,7 @@ pub fn chain_shader(precision: Precision, kernel: ChainKernel) -> String {
         ("ALMOST_ONE", 1.0 - 1e-12),
         ("HALF_PI", std::f64::consts::FRAC_PI_2),
         ("PI", std::f64::consts::PI),
+        ("TAU", std::f64::consts::TAU),
         ("ONE_SIXTH", 1.0 / 6.0),
         ("LEADING_FRACTION", LEADING_FRACTION),
     ];
@@ -360,7 +400,7 @@ pub fn chain_shader(precision: Precision, kernel: ChainKernel) -> String {
             "fn r_count(lo: u32, hi: u32) -> real { return f64(hi) * 4294967296.0 + f64(lo); }\nfn r_finite(a: real) -> bool { return abs(a) <= 1.7976931348623157e308; }\n"
         }
     });
-    let consts: [(&str, String); 10] = [
+    let consts: [(&str, String); 12] = [
         ("WG: u32", format!("{wg}u")),
         ("LOCAL: bool", format!("{}", local > 0)),
         ("LV: u32", format!("{}u", local.max(1))),
@@ -371,6 +411,8 @@ pub fn chain_shader(precision: Precision, kernel: ChainKernel) -> String {
         ("PROBE_REALS: u32", format!("{PROBE_REALS}u")),
         ("WALL_WATCH_REALS: u32", format!("{WALL_WATCH_REALS}u")),
         ("LEADING_RECORDS: u32", format!("{LEADING_RECORDS}u")),
+        ("RISE_REALS: u32", format!("{RISE_REALS}u")),
+        ("AMP_REALS: u32", format!("{AMP_REALS}u")),
     ];
     for (name, value) in consts {
         let _ = writeln!(s, "const {name} = {value};");
@@ -401,28 +443,44 @@ pub fn chain_shader(precision: Precision, kernel: ChainKernel) -> String {
         let doc = doc.split_whitespace().collect::<Vec<_>>().join(" ");
         let _ = writeln!(s, "// {doc}\nconst {name}: u32 = {i}u;");
     }
-    // observe::peak: 60 bisections of the derivative, written out.
-    let half = real_literal(0.5, precision);
-    let zero = real_literal(0.0, precision);
-    let _ = writeln!(
-        s,
-        "fn peak(c: array<real, 6>) -> Peak {{\n    var a = {zero};\n    var b = {};\n    var m: real;",
-        real_literal(1.0, precision)
-    );
-    for _ in 0..60 {
-        let _ = writeln!(
-            s,
-            "    m = r_mul({half}, r_add(a, b));\n    if (r_gt(dpoly(c, m), {zero})) {{ a = m; }} else {{ b = m; }}"
-        );
-    }
-    let _ = writeln!(
-        s,
-        "    let x = r_mul({half}, r_add(a, b));\n    return Peak(x, poly(c, x));\n}}"
+    // observe::peak: 60 bisections of the derivative (observe::bisect),
+    // written out.
+    bisection(
+        &mut s,
+        precision,
+        "peak",
+        "Peak",
+        "r_gt(dpoly(c, m), ZERO)",
+        "Peak(x, poly(c, x))",
     );
     s.push_str(&half_sine_wgsl(precision));
     let body = include_str!("../../../shaders/granular/chains.wgsl");
     s.push_str(&super::body_for(body, precision));
     s
+}
+
+/// observe::bisect in WGSL, written out: `fn name(c: array<real, 6>) -> ty`,
+/// 60 bisections of [0, 1] while `before` (of `m`) holds, then `ret` (of
+/// `x`, the midpoint). ZERO in `before` is the precision's 0.
+fn bisection(s: &mut String, precision: Precision, name: &str, ty: &str, before: &str, ret: &str) {
+    let half = real_literal(0.5, precision);
+    let zero = real_literal(0.0, precision);
+    let before = before.replace("ZERO", &zero);
+    let _ = writeln!(
+        s,
+        "fn {name}(c: array<real, 6>) -> {ty} {{\n    var a = {zero};\n    var b = {};\n    var m: real;",
+        real_literal(1.0, precision)
+    );
+    for _ in 0..60 {
+        let _ = writeln!(
+            s,
+            "    m = r_mul({half}, r_add(a, b));\n    if ({before}) {{ a = m; }} else {{ b = m; }}"
+        );
+    }
+    let _ = writeln!(
+        s,
+        "    let x = r_mul({half}, r_add(a, b));\n    return {ret};\n}}"
+    );
 }
 
 /// step::half_sine in WGSL: Horner with the factors as constants.

@@ -347,9 +347,9 @@ impl Beads {
     }
 
     /// Whether only the CPU engine runs this chain: the GPU kernel has no
-    /// damping substep, no piston and no drive yet (issue #45).
+    /// damping substep yet (issue #45); pistons and drives it runs.
     pub fn cpu_only(&self) -> bool {
-        self.damped() || self.piston > 0.0 || self.pulse.as_ref().is_some_and(|p| p.is_drive())
+        self.damped()
     }
 
     /// The speed every velocity error is relative to (m/s): the largest

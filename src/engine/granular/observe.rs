@@ -439,6 +439,28 @@ impl<R: Real> Rise<R> {
     }
 }
 
+/// Reals of a packed [`Rise`] ([`Rise::pack`]).
+pub const RISE_REALS: usize = 7;
+
+impl<R: Real> Rise<R> {
+    /// As reals for the GPU twin: has_last, last t and q, reached, when.
+    pub fn pack(&self) -> [R; RISE_REALS] {
+        let l = pack_last(&self.last);
+        let (a, at) = match self.at {
+            Some(t) => (R::one(), t),
+            None => (R::zero(), R::zero()),
+        };
+        [l[0], l[1], l[2], l[3], l[4], a, at]
+    }
+
+    pub fn unpack(r: &[R]) -> Rise<R> {
+        Rise {
+            last: unpack_last(r),
+            at: (r[5] != R::zero()).then_some(r[6]),
+        }
+    }
+}
+
 /// A drive's steady response at a bead: the amplitude of the bead's
 /// velocity at the drive's frequency f over the window [from, end] (the
 /// run's second half), by a lock-in with a Hann window w:
@@ -499,6 +521,29 @@ impl<R: Real> Amplitude<R> {
             2.0 * (c * c + s * s).sqrt() / w
         } else {
             0.0
+        }
+    }
+}
+
+/// Reals of a packed [`Amplitude`]'s running state ([`Amplitude::pack`]).
+pub const AMP_REALS: usize = 8;
+
+impl<R: Real> Amplitude<R> {
+    /// Its running state as reals for the GPU twin: has_last, last t and
+    /// v·w·(cos, sin), w, then the three sums (`from`, `end` and
+    /// `frequency` are the chain's scalars).
+    pub fn pack(&self) -> [R; AMP_REALS] {
+        let l = pack_last(&self.last);
+        let s = self.sums;
+        [l[0], l[1], l[2], l[3], l[4], s[0], s[1], s[2]]
+    }
+
+    /// `self` with the running state `r` ([`Amplitude::pack`]'s).
+    pub fn unpacked(&self, r: &[R]) -> Amplitude<R> {
+        Amplitude {
+            last: unpack_last(r),
+            sums: [r[5], r[6], r[7]],
+            ..self.clone()
         }
     }
 }
