@@ -348,7 +348,11 @@ fn shaders_validate_with_naga() {
         .into_iter()
         .flat_map(|p| [(p, 0), (p, 1024)])
     {
-        let kernel = ChainKernel { local, wg: 64 };
+        let kernel = ChainKernel {
+            local,
+            wg: 64,
+            damped: false,
+        };
         let src = hertz_cradle::backend::gpu::chain_shader(p, kernel);
         let module = naga::front::wgsl::parse_str(&src)
             .unwrap_or_else(|e| panic!("chains {}: {}", p.name(), e.emit_to_string(&src)));
@@ -578,7 +582,14 @@ fn chain_shader_and_host_agree_on_the_boundary() {
         assert_eq!(HEAD_FIELDS[at / 4].0, name);
     }
     for p in [Precision::F64, Precision::Df64] {
-        let src = hertz_cradle::backend::gpu::chain_shader(p, ChainKernel { local: 64, wg: 64 });
+        let src = hertz_cradle::backend::gpu::chain_shader(
+            p,
+            ChainKernel {
+                local: 64,
+                wg: 64,
+                damped: true,
+            },
+        );
         let module = naga::front::wgsl::parse_str(&src).unwrap();
         let (members, span) = structure(&module, "Head");
         assert_eq!(span as usize, std::mem::size_of::<ChainHead>());
@@ -766,7 +777,14 @@ fn shader_cites_only_rust_items_that_exist() {
     let body = [
         hertz_cradle::backend::gpu::SHADER_BODY,
         hertz_cradle::backend::gpu::WIDE_BODY,
-        &hertz_cradle::backend::gpu::chain_shader(Precision::F64, ChainKernel { local: 0, wg: 64 }),
+        &hertz_cradle::backend::gpu::chain_shader(
+            Precision::F64,
+            ChainKernel {
+                local: 0,
+                wg: 64,
+                damped: false,
+            },
+        ),
     ]
     .concat();
     fn rust_under(dir: &std::path::Path, out: &mut String) {
@@ -1244,9 +1262,15 @@ fn gpu_chain_kernel_gives_the_cpus_chain_outcomes() {
     let pushed = [
         "balls = 50\nradius = 0.005\n[walls]\nleft = true\n[piston]\nvelocity = 0.1\n[probes]\nbeads = [3, 8]\n[stop]\nduration = 3e-4\n",
         "balls = 50\nradius = 0.005\n[walls]\nleft = true\n[piston]\nvelocity = 0.05\n[pulse]\nbead = 49\nforce = -1.0\nduration = 1e-5\n[probes]\nbeads = [3, 8]\n[stop]\nduration = 3e-4\n",
+        // damped: a piston into dashpots and air drag; a struck chain with
+        // Hunt–Crossley contacts and dashpots against a wall; a precompressed chain with
+        // a pulse (the snapshot keeps what the damping took by then)
+        "balls = 40\nradius = 0.005\n[walls]\nleft = true\n[piston]\nvelocity = 0.1\n[damping]\nviscosity = 20.0\nair_drag = 5.0\n[probes]\nbeads = [3, 8]\n[stop]\nduration = 3e-4\n",
+        "balls = 20\nradius = 0.005\n[walls]\nright = true\n[launch]\nballs = 1\nvelocity = 0.2\n[damping]\nrestitution = 0.8\nviscosity = 0.5\n[probes]\nbeads = [5, 15]\n[solver]\ndt = 1e-7\n[stop]\nduration = 8e-5\n",
+        "balls = 40\nradius = 0.005\n[walls]\nleft = true\nright = true\nprecompression = 2.0\n[pulse]\nbead = 0\nforce = 5.0\nduration = 2e-5\n[damping]\nviscosity = 1.0\n[probes]\nbeads = [10, 30]\n[stop]\nduration = 6e-5\n",
         "balls = 40\nradius = 0.005\n[walls]\nleft = true\nright = true\nprecompression = 5.0\n[drive]\nbead = 10\nforce = 0.05\nfrequency = 20000.0\nduration = 8e-5\n[probes]\nbeads = [5, 15]\n[stop]\nduration = 1e-4\n",
     ];
-    let pushes = jobs.len();
+    let (pushes, kinds) = (jobs.len(), pushed.len());
     for p in [Precision::F64, Precision::Df64] {
         for text in pushed {
             let s = Scene::from_toml_str("pushed", text).unwrap_or_else(|e| panic!("{e}\n{text}"));
@@ -1313,15 +1337,29 @@ fn gpu_chain_kernel_gives_the_cpus_chain_outcomes() {
     for k in [0, 2, 3, 4, columns, columns + 1] {
         assert_eq!(status(&gpu[k]), Status::Ok, "chain {k}");
     }
-    // The pistons did work and their fronts reached the probes; the drive's
-    // amplitudes were measured.
-    for k in [pushes, pushes + 1, pushes + 3, pushes + 4] {
+    // The pistons did work and their fronts reached the probes, the damped
+    // chains dissipated; the drive's amplitudes were measured.
+    for k in (pushes + 2..pushes + 5).chain(pushes + kinds + 2..pushes + kinds + 5) {
+        assert!(
+            gpu[k].energy_dissipated > 0.0,
+            "chain {k}: {}",
+            gpu[k].energy_dissipated
+        );
+    }
+    for k in [
+        pushes,
+        pushes + 1,
+        pushes + 2,
+        pushes + kinds,
+        pushes + kinds + 1,
+        pushes + kinds + 2,
+    ] {
         let o = &gpu[k];
         assert_eq!(o.status, Status::Ok, "chain {k}");
         assert!(o.piston_work > 0.0, "chain {k}: {}", o.piston_work);
         assert!(o.shock_speed.is_finite(), "chain {k}: {}", o.shock_speed);
     }
-    for k in [pushes + 2, pushes + 5] {
+    for k in [pushes + kinds - 1, pushes + 2 * kinds - 1] {
         let o = &gpu[k];
         assert_eq!(o.status, Status::Ok, "chain {k}");
         assert!(

@@ -24,7 +24,11 @@
 // and two functions written out there (lavapipe cuts loops short past a
 // budget of iterations): `peak` (60 bisection steps) and `half_sine`
 // (step::half_sine, its factors printed from SINE_FACTORS). `real(x)` of a
-// literal is the precision's nearest value (layout::body_for).
+// literal is the precision's nearest value (layout::body_for). Between the
+// prelude and this file comes damping.wgsl for a damped chain's pipeline
+// (DAMPED: the damping substep `damp`, the closing corrections
+// `crossings`, the observers' damped accelerations `accs` and `acc_at`
+// and `damping_jerk`), or undamped.wgsl, the same functions without it.
 
 @group(0) @binding(0) var<storage, read_write> heads: array<Head>;
 @group(0) @binding(1) var<storage, read_write> R: array<real>;
@@ -277,6 +281,11 @@ fn kink_impulse_error(kc: real, d0: real, d1: real) -> real {
 fn crossed(j: u32) -> bool {
     let d0 = r_add(R[H.o_d0 + j], R[H.o_ps + j]);
     let d1 = r_add(R[H.o_d0 + j], R[H.o_p + j]);
+    // step::miss: with dashpots a contact is slack before it opens (its
+    // spring's kink is not felt).
+    if (DAMPED && (H.flags & F_GAMMA) != 0u && r_gt(d0, real(0.0))) {
+        return false;
+    }
     return r_gt(d1, real(0.0)) != r_gt(d0, real(0.0)) && r_nz(R[H.o_k + j]);
 }
 
@@ -623,9 +632,14 @@ fn step(st: Step) {
     let kinked = (H.flags & F_KINKS) != 0u;
     let refine = (H.flags & F_REFINE) != 0u;
     let c0 = r_mul(r_mul(real(0.5), wts[0]), h);
-    if (kinked) {
+    if (kinked || DAMPED) {
         for (var j = lo + me; j <= hi; j += WG) {
             R[H.o_ps + j] = R[H.o_p + j];
+        }
+    }
+    if (DAMPED) {
+        for (var j = lo + me; j <= hi; j += WG) {
+            R[H.o_dimp + j] = real(0.0);
         }
     }
     if (refine) {
@@ -644,7 +658,18 @@ fn step(st: Step) {
     sync();
     for (var j = 0u; j < s; j++) {
         let wj = wts[j];
-        drift(lo, hi, r_mul(wj, h));
+        if (DAMPED) {
+            // Drift, damp, drift: a symmetric substep (step::damp).
+            let tau = r_mul(wj, h);
+            let half = r_mul(real(0.5), tau);
+            drift(lo, hi, half);
+            sync();
+            damp(lo, hi, tau);
+            sync();
+            drift(lo, hi, half);
+        } else {
+            drift(lo, hi, r_mul(wj, h));
+        }
         t = r_add(t, r_mul(wj, h));
         sync();
         let c = kick_weight(j, h);
@@ -672,6 +697,19 @@ fn step(st: Step) {
     if (refine) {
         refine_near(lo, hi, st.t0, h, t);
     }
+    if (DAMPED) {
+        if (piston) {
+            // Bead 0 is contact 0's bead b: it takes minus the dashpot's
+            // impulse on the wall, and minus its closing correction.
+            var x = real(0.0);
+            if (closed_in_step(0u)) {
+                x = closing_correction(0u);
+            }
+            R[H.sc + SC_WALL_IMP] = r_sub(r_sub(R[H.sc + SC_WALL_IMP], R[H.o_dimp]), x);
+        }
+        crossings(lo, hi);
+        sync();
+    }
 }
 
 // The piston's share of a kick by c: c times contact 0's force.
@@ -682,32 +720,32 @@ fn wall_kick(c: real) {
 
 // ---- the observers (observe.rs): invocation 0 ----
 
-// x_{j−1} − x_j of the velocities (`accel` false: observe::closing, the
-// left wall moving at SC_PISTON) or the accelerations across contact j.
-fn across(accel: bool, j: u32) -> real {
+// observe::closing: δ̇ of contact j, v_{j−1} − v_j (the right wall stands
+// still, the left one moves at SC_PISTON).
+fn closing_of(j: u32) -> real {
     var l = real(0.0);
     if (j > 0u) {
-        l = select(V(j - 1u), R[H.o_a + j - 1u], accel);
-    } else if (!accel && (H.flags & F_PISTON) != 0u) {
+        l = V(j - 1u);
+    } else if ((H.flags & F_PISTON) != 0u) {
         l = R[H.sc + SC_PISTON];
     }
     var r = real(0.0);
     if (j < H.n) {
-        r = select(V(j), R[H.o_a + j], accel);
+        r = V(j);
     }
     return r_sub(l, r);
 }
 
-// observe::force_rates — (F, dF/dt, d²F/dt²) of contact j.
-fn force_rates(j: u32) -> Q {
+// observe::force_rates — (F, dF/dt, d²F/dt²) of contact j, the rate of
+// its δ̇ given (r2: observe::across_acceleration, from `accs` or `acc_at`).
+fn force_rates(j: u32, r2: real) -> Q {
     let d = r_add(R[H.o_d0 + j], R[H.o_p + j]);
     let k = R[H.o_k + j];
     if (r_le(d, real(0.0)) || !r_nz(k)) {
         return Q(real(0.0), real(0.0), real(0.0));
     }
     let sq = r_sqrt(d);
-    let r1 = across(false, j);
-    let r2 = across(true, j);
+    let r1 = closing_of(j);
     return Q(
         r_mul(r_mul(k, d), sq),
         r_mul(r_mul(r_mul(real(1.5), k), sq), r1),
@@ -718,8 +756,9 @@ fn force_rates(j: u32) -> Q {
     );
 }
 
-// observe::bead_rates_with — (v, a, jerk) of bead i.
-fn bead_rates_with(i: u32, t: real, left: real, right: real) -> Q {
+// observe::bead_rates_with — (v, a, jerk) of bead i; `ac`: the
+// accelerations of beads i − 1, i, i + 1 (`accs`).
+fn bead_rates_with(i: u32, t: real, left: real, right: real, ac: array<real, 3>) -> Q {
     let im = R[H.o_im + i];
     var jerk = r_mul(r_sub(left, right), im);
     let pdur = R[H.sc + SC_PULSE_DURATION];
@@ -727,7 +766,10 @@ fn bead_rates_with(i: u32, t: real, left: real, right: real) -> Q {
         let w = R[H.sc + SC_OMEGA];
         jerk = r_add(jerk, r_mul(r_mul(r_mul(R[H.sc + SC_PULSE_FORCE], w), push_cos(t)), R[H.sc + SC_PULSE_IM]));
     }
-    return Q(V(i), R[H.o_a + i], jerk);
+    if (DAMPED) {
+        jerk = r_add(jerk, damping_jerk(i, ac));
+    }
+    return Q(V(i), ac[1], jerk);
 }
 
 // a·x as quintic's terms are written (c · x, the constant first).
@@ -973,9 +1015,10 @@ fn watch_see(t: real) -> u32 {
         let i = probe_beads[H.probe_at + k];
         let vo = H.o_watch + PROBE_REALS * k;
         let fo = vo + FIRST_PEAK_REALS;
-        let fl = force_rates(i);
-        let fr = force_rates(i + 1u);
-        let qv = bead_rates_with(i, t, fl.y, fr.y);
+        let ac = accs(i);
+        let fl = force_rates(i, r_sub(ac[0], ac[1]));
+        let fr = force_rates(i + 1u, r_sub(ac[1], ac[2]));
+        let qv = bead_rates_with(i, t, fl.y, fr.y, ac);
         let taken = first_peak_see_leading(vo, t, qv, floor_v);
         if ((H.flags & F_PISTON) != 0u) {
             rise_see(H.o_rise + RISE_REALS * k, t, qv, R[H.sc + SC_RISE_LEVEL]);
@@ -996,18 +1039,20 @@ fn watch_see(t: real) -> u32 {
     }
     let far = H.o_watch + PROBE_REALS * H.probes;
     if (r_gt(R[H.o_k], real(0.0))) {
-        wall_see(far + FIRST_PEAK_REALS, t, force_rates(0u), R[H.o_f0]);
+        wall_see(far + FIRST_PEAK_REALS, t, force_rates(0u, r_sub(real(0.0), acc_at(0u))), R[H.o_f0]);
     }
     if (r_gt(R[H.o_k + n], real(0.0))) {
-        wall_see(far + FIRST_PEAK_REALS + WALL_WATCH_REALS, t, force_rates(n), R[H.o_f0 + n]);
+        let fw = force_rates(n, r_sub(acc_at(n - 1u), real(0.0)));
+        wall_see(far + FIRST_PEAK_REALS + WALL_WATCH_REALS, t, fw, R[H.o_f0 + n]);
     }
     if ((H.flags & F_RIGHT) != 0u) {
-        let f = force_rates(n);
+        let f = force_rates(n, r_sub(acc_at(n - 1u), real(0.0)));
         first_peak_see(far, t, Q(r_sub(f.x, R[H.o_f0 + n]), f.y, f.z), floor_f);
     } else {
-        let fl = force_rates(n - 1u);
-        let fr = force_rates(n);
-        first_peak_see(far, t, bead_rates_with(n - 1u, t, fl.y, fr.y), floor_v);
+        let ac = accs(n - 1u);
+        let fl = force_rates(n - 1u, r_sub(ac[0], ac[1]));
+        let fr = force_rates(n, r_sub(ac[1], ac[2]));
+        first_peak_see(far, t, bead_rates_with(n - 1u, t, fl.y, fr.y, ac), floor_v);
     }
     return snaps;
 }
@@ -1093,7 +1138,9 @@ fn after_step(st: Step) {
             hi = H.pulse_bead + 1u;
         }
     } else {
-        let m = H.stages + 1u + MARGIN_EXTRA;
+        // A damping substep's three sweeps of dashpots reach three beads
+        // further per substep.
+        let m = H.stages * select(1u, 4u, DAMPED) + 1u + MARGIN_EXTRA;
         var plo = NONE;
         var phi = 0u;
         if (pulse_on) {
@@ -1214,6 +1261,14 @@ fn main(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) 
             }
             for (var i = me; i < n; i += WG) {
                 R[H.o_snapev + i] = V(i);
+            }
+            if (DAMPED) {
+                for (var j = me; j <= n; j += WG) {
+                    R[H.o_snaplc + j] = R[H.o_lc + j];
+                }
+                for (var i = me; i < n; i += WG) {
+                    R[H.o_snaplb + i] = R[H.o_lb + i];
+                }
             }
         }
         if (after.check != 0u) {

@@ -17,9 +17,9 @@ use super::staging::map_read;
 use super::Gpu;
 pub use crate::backend::layout::granular::{chain_shader, ChainKernel};
 use crate::backend::layout::granular::{
-    ChainCtl, ChainHead, Offsets, Sc, F_DRIVE, F_DURATION, F_END_AT, F_KINKS, F_PISTON, F_PULSE,
-    F_REFINE, F_RIGHT, MAX_STAGES, PROBE_REALS, SNAP_ENERGY, SNAP_WIDTH, ST_NON_FINITE,
-    ST_STEP_CAP, ST_TIME_CAP,
+    ChainCtl, ChainHead, Offsets, Sc, F_DRAG, F_DRIVE, F_DURATION, F_END_AT, F_GAMMA, F_HC,
+    F_KINKS, F_PISTON, F_PULSE, F_REFINE, F_RIGHT, MAX_STAGES, PROBE_REALS, SNAP_ENERGY,
+    SNAP_WIDTH, ST_NON_FINITE, ST_STEP_CAP, ST_TIME_CAP,
 };
 use crate::backend::ChainJob;
 use crate::engine::granular::observe::{
@@ -150,9 +150,9 @@ fn watch_counts(b: &Beads) -> (usize, usize) {
 /// Where a job's reals lie.
 fn offsets(job: &ChainJob) -> Offsets {
     let (b, plan) = (&job.beads, &job.plan);
-    let (rises, amps) = watch_counts(b);
     let refine = plan.substeps().refine.is_some();
-    Offsets::of(b.n, plan.weights.len(), b.probes.len(), refine, rises, amps)
+    let (n, stages, probes) = (b.n, plan.weights.len(), b.probes.len());
+    Offsets::of(n, stages, probes, refine, watch_counts(b), b.damped())
 }
 
 /// Pack one chain at reals offset `base` (its header, its reals, its
@@ -193,6 +193,7 @@ fn pack<R: Real>(job: &ChainJob, base: usize, probe_at: usize) -> (ChainHead, f6
         r[Sc::AmpFrom as usize] = a.from;
         r[Sc::AmpEnd as usize] = a.end;
     }
+    pack_damping(&c, &st, &o, &mut r);
     if let Some(rf) = &refine {
         r[Sc::Near as usize] = R::of(rf.near);
         r[Sc::Floor as usize] = R::of(rf.floor);
@@ -214,28 +215,7 @@ fn pack<R: Real>(job: &ChainJob, base: usize, probe_at: usize) -> (ChainHead, f6
     r[o.e..o.e + n + 1].copy_from_slice(&st.e);
     pack_watch(&watch, &o, &mut r);
     let u = |x: usize| (base + x) as u32;
-    let mut flags = 0;
-    if plan.duration.is_some() {
-        flags |= F_DURATION | F_END_AT;
-    }
-    if b.right_wall {
-        flags |= F_RIGHT;
-    }
-    if pulse.is_some() {
-        flags |= F_PULSE;
-    }
-    if plan.kicks.is_some() {
-        flags |= F_KINKS;
-    }
-    if refine.is_some() {
-        flags |= F_REFINE;
-    }
-    if c.piston != zero {
-        flags |= F_PISTON;
-    }
-    if !watch.amps.is_empty() {
-        flags |= F_DRIVE;
-    }
+    let flags = flags_of(b, plan, &c, &watch);
     let head = ChainHead {
         n: n as u32,
         stages: w.len() as u32,
@@ -270,11 +250,82 @@ fn pack<R: Real>(job: &ChainJob, base: usize, probe_at: usize) -> (ChainHead, f6
         o_fl: u(o.fl),
         o_rise: u(o.rise),
         o_amp: u(o.amp),
+        o_beta: u(o.beta),
+        o_imu: u(o.imu),
+        o_mu: u(o.mu),
+        o_sha: u(o.sha),
+        o_shb: u(o.shb),
+        o_dm: u(o.dm),
+        o_lc: u(o.lc),
+        o_lb: u(o.lb),
+        o_chi: u(o.chi),
+        o_dimp: u(o.dimp),
+        o_snaplc: u(o.snaplc),
+        o_snaplb: u(o.snaplb),
         reach: refine.map_or(0, |r| r.reach as u32),
         msteps: refine.map_or(0, |r| r.steps as u32),
         ..Default::default()
     };
     (head, run::energy(b, &st), r)
+}
+
+/// A damped chain's constants and state into its reals `r` (nothing for
+/// another chain).
+fn pack_damping<R: Real>(c: &Consts<R>, st: &State<R>, o: &Offsets, r: &mut [R]) {
+    let Some(d) = &c.damp else {
+        return;
+    };
+    r[Sc::Gamma as usize] = d.gamma;
+    r[Sc::Hc as usize] = d.hc;
+    r[Sc::ChiFloor as usize] = d.chi_floor;
+    r[Sc::Drag as usize] = d.drag;
+    let mut put = |at: usize, x: &[R]| r[at..at + x.len()].copy_from_slice(x);
+    put(o.beta, &d.beta);
+    put(o.imu, &d.inv_mu);
+    put(o.mu, &d.mu);
+    put(o.sha, &d.share_a);
+    put(o.shb, &d.share_b);
+    put(o.dm, &d.mass);
+    put(o.lc, &st.lost_c);
+    put(o.lb, &st.lost_b);
+    if !st.chi.is_empty() {
+        put(o.chi, &st.chi);
+    }
+}
+
+/// A chain's `ChainHead::flags`.
+fn flags_of<R: Real>(b: &Beads, plan: &Plan, c: &Consts<R>, watch: &Watch<R>) -> u32 {
+    let zero = R::zero();
+    let mut flags = 0;
+    if plan.duration.is_some() {
+        flags |= F_DURATION | F_END_AT;
+    }
+    if b.right_wall {
+        flags |= F_RIGHT;
+    }
+    if c.pulse.is_some() {
+        flags |= F_PULSE;
+    }
+    if plan.kicks.is_some() {
+        flags |= F_KINKS;
+    }
+    if plan.substeps().refine.is_some() {
+        flags |= F_REFINE;
+    }
+    if c.piston != zero {
+        flags |= F_PISTON;
+    }
+    if !watch.amps.is_empty() {
+        flags |= F_DRIVE;
+    }
+    if let Some(d) = &c.damp {
+        for (on, flag) in [(d.drag, F_DRAG), (d.gamma, F_GAMMA), (d.hc, F_HC)] {
+            if on != zero {
+                flags |= flag;
+            }
+        }
+    }
+    flags
 }
 
 /// The observers' state into a chain's reals `r`: each probe's peaks, the
@@ -313,6 +364,8 @@ fn finish<R: Real>(job: &ChainJob, h: &ChainHead, reals: &[R], e_start: f64) -> 
         reals[o..o + len].to_vec()
     };
     let to64 = |x: Vec<R>| x.into_iter().map(|x| x.to64()).collect::<Vec<f64>>();
+    let damped = b.damped();
+    let hc = b.damped() && reals[Sc::Hc as usize] != R::zero();
     let st = State {
         steps: ((h.steps_hi as u64) << 32) | h.steps_lo as u64,
         p: at(h.o_p, n + 1),
@@ -325,11 +378,14 @@ fn finish<R: Real>(job: &ChainJob, h: &ChainHead, reals: &[R], e_start: f64) -> 
         scratch: crate::engine::granular::step::Scratch::none(),
         regions: h.regions as u64,
         region_beads: h.region_beads as u64,
-        // Damped chains run on the CPU engine (`Gpu::run_chains`).
-        lost_c: Vec::new(),
-        lost_b: Vec::new(),
+        lost_c: if damped {
+            at(h.o_lc, n + 1)
+        } else {
+            Vec::new()
+        },
+        lost_b: if damped { at(h.o_lb, n) } else { Vec::new() },
         wall_imp: reals[Sc::WallImp as usize],
-        chi: Vec::new(),
+        chi: if hc { at(h.o_chi, n + 1) } else { Vec::new() },
     };
     let mut watch = Watch::<R>::new(b);
     let mut o = rel(h.o_watch);
@@ -359,10 +415,15 @@ fn finish<R: Real>(job: &ChainJob, h: &ChainHead, reals: &[R], e_start: f64) -> 
     let e_ref = if b.pulse.is_none() {
         Some(e_start)
     } else if h.snaps & SNAP_ENERGY != 0 {
-        // run::budget then: a piston's work taken off (damped chains run
-        // on the CPU).
+        // run::budget then: what the damping took added, a piston's work
+        // taken off.
         let e = b.energy(&to64(at(h.o_snapp, n + 1)), &to64(at(h.o_snapev, n)));
-        Some(e - b.piston * reals[Sc::SnapWallImp as usize].to64())
+        let lost = if damped {
+            run::lost(&at(h.o_snaplc, n + 1), &at(h.o_snaplb, n))
+        } else {
+            run::lost::<R>(&[], &[])
+        };
+        Some(e + lost - b.piston * reals[Sc::SnapWallImp as usize].to64())
     } else {
         None
     };
@@ -394,7 +455,14 @@ fn loops_per_step(job: &ChainJob, wg: u32) -> usize {
         let beads = 2 * r.reach + 1;
         4 * strides + 4 * beads + r.steps * (s * (3 * beads + 16) + 2 * beads + 4)
     });
-    base + refine
+    // A damped chain: per stage a second drift, the drag twice and three
+    // sweeps of dashpots; the closing corrections after the step.
+    let damped = if job.beads.damped() {
+        s * (6 * strides + 4) + 3 * strides + 2
+    } else {
+        0
+    };
+    base + refine + damped
 }
 
 impl Gpu {
@@ -413,7 +481,11 @@ impl Gpu {
         } else {
             0
         };
-        ChainKernel { local, wg }
+        ChainKernel {
+            local,
+            wg,
+            damped: false,
+        }
     }
 
     /// The chain pipeline of `precision` (f64 or df64) and `kernel`,
@@ -501,7 +573,10 @@ impl Gpu {
     fn run_chain_jobs_in<R: Real>(&self, jobs: &[&ChainJob]) -> Result<Vec<ChainOutcome>> {
         grouped(
             jobs,
-            |j| self.chain_kernel(j.beads.n),
+            |j| ChainKernel {
+                damped: j.beads.damped(),
+                ..self.chain_kernel(j.beads.n)
+            },
             |kernel, these| self.run_chain_jobs_with::<R>(these, kernel),
         )
     }

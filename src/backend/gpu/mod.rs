@@ -322,11 +322,7 @@ impl Backend for Gpu {
     }
 
     /// A workgroup per chain (`granular.rs`); the chains are built on the
-    /// rayon pool, all of the batch before the device starts. Damped chains
-    /// (issue #45, [`Beads::cpu_only`]) run on the CPU engine beside them:
-    /// the kernel has no damping substep yet.
-    ///
-    /// [`Beads::cpu_only`]: crate::engine::granular::Beads::cpu_only
+    /// rayon pool, all of the batch before the device starts.
     fn run_chains(
         &self,
         n: usize,
@@ -336,30 +332,13 @@ impl Backend for Gpu {
         use rayon::prelude::*;
         let jobs: Vec<Option<super::ChainJob>> =
             (0..n).into_par_iter().map(job).collect::<Result<_, _>>()?;
-        let on_device: Vec<&super::ChainJob> = jobs
-            .iter()
-            .flatten()
-            .filter(|j| !j.beads.cpu_only())
-            .collect();
+        let on_device: Vec<&super::ChainJob> = jobs.iter().flatten().collect();
         let mut done = self.run_chain_jobs(&on_device)?.into_iter();
-        let on_cpu: Vec<Option<ChainOutcome>> = jobs
-            .par_iter()
-            .map(|j| {
-                let j = j.as_ref().filter(|j| j.beads.cpu_only())?;
-                Some(crate::engine::granular::run(
-                    &j.beads,
-                    &j.plan,
-                    &mut crate::engine::granular::NoRows,
-                ))
-            })
-            .collect();
         Ok(jobs
             .iter()
-            .zip(on_cpu)
-            .map(|(j, cpu)| match (j, cpu) {
-                (_, Some(o)) => o,
-                (Some(_), None) => done.next().expect("one outcome per chain"),
-                (None, None) => ChainOutcome::invalid(),
+            .map(|j| match j {
+                Some(_) => done.next().expect("one outcome per chain"),
+                None => ChainOutcome::invalid(),
             })
             .collect())
     }

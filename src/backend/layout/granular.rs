@@ -22,13 +22,16 @@ use crate::engine::granular::END_MARGIN;
 use crate::scene::Precision;
 
 /// Which chain pipeline a chain runs in: `local` beads in workgroup memory
-/// (0: the global path; `backend::gpu::local_beads`) and `wg` invocations
-/// per workgroup. The outcomes do not depend on it (the loops' per-bead work
-/// is the same, the reductions exact in any order).
+/// (0: the global path; `backend::gpu::local_beads`), `wg` invocations
+/// per workgroup, and whether it has the damping substep (`damped`: a
+/// pipeline of its own, so that the others compile without it). The
+/// outcomes do not depend on `local` and `wg` (the loops' per-bead work is
+/// the same, the reductions exact in any order).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub struct ChainKernel {
     pub local: u32,
     pub wg: u32,
+    pub damped: bool,
 }
 
 /// Most substeps of a method (the shader's private weights).
@@ -48,6 +51,11 @@ pub const F_PISTON: u32 = 128;
 /// A drive (a pulse whose `Sc::Cycles` is the frequency): each probe has
 /// an amplitude.
 pub const F_DRIVE: u32 = 256;
+/// A damped chain's parts (DAMPED pipelines): air drag, dashpots (γ > 0),
+/// Hunt–Crossley contacts.
+pub const F_DRAG: u32 = 512;
+pub const F_GAMMA: u32 = 1024;
+pub const F_HC: u32 = 2048;
 /// Bits of `ChainHead::snaps`: the snapshots taken so far.
 pub const SNAP_WIDTH: u32 = 1;
 pub const SNAP_ENERGY: u32 = 2;
@@ -66,6 +74,9 @@ pub const CODES: &[(&str, u32)] = &[
     ("F_REFINE", F_REFINE),
     ("F_PISTON", F_PISTON),
     ("F_DRIVE", F_DRIVE),
+    ("F_DRAG", F_DRAG),
+    ("F_GAMMA", F_GAMMA),
+    ("F_HC", F_HC),
     ("SNAP_WIDTH", SNAP_WIDTH),
     ("SNAP_ENERGY", SNAP_ENERGY),
     ("ST_STEP_CAP", ST_STEP_CAP),
@@ -168,6 +179,30 @@ chain_head! {
     o_rise,
     /// each probe's amplitude at the drive's frequency (F_DRIVE; AMP_REALS each)
     o_amp,
+    /// damped chains (DampConsts; empty otherwise): each contact's β
+    o_beta,
+    /// each contact's 1/μ
+    o_imu,
+    /// each contact's μ
+    o_mu,
+    /// each contact's share for bead a
+    o_sha,
+    /// each contact's share for bead b
+    o_shb,
+    /// each bead's mass
+    o_dm,
+    /// the energy each contact's dashpot took (State::lost_c)
+    o_lc,
+    /// the energy each bead's drag and closing corrections took (State::lost_b)
+    o_lb,
+    /// each contact's Hunt–Crossley χ (State::chi)
+    o_chi,
+    /// each contact's dashpot impulse over the step (Scratch::dimp)
+    o_dimp,
+    /// the energy snapshot's lost_c
+    o_snaplc,
+    /// the energy snapshot's lost_b
+    o_snaplb,
     /// the local refinement's reach (step::Refine)
     reach,
     /// the local refinement's finer steps
@@ -259,6 +294,14 @@ scalars! {
     AmpFrom = "SC_AMP_FROM",
     /// the window of a drive's amplitudes: its end
     AmpEnd = "SC_AMP_END",
+    /// the dashpots' γ (DampConsts::gamma)
+    Gamma = "SC_GAMMA",
+    /// the Hunt–Crossley a(e) (DampConsts::hc; 0: none)
+    Hc = "SC_HC",
+    /// the smallest closing speed χ is taken at (DampConsts::chi_floor)
+    ChiFloor = "SC_CHI_FLOOR",
+    /// the air drag (DampConsts::drag)
+    Drag = "SC_DRAG",
 }
 
 /// Reals of a chain's scalars.
@@ -290,20 +333,33 @@ pub struct Offsets {
     pub fl: usize,
     pub rise: usize,
     pub amp: usize,
+    pub beta: usize,
+    pub imu: usize,
+    pub mu: usize,
+    pub sha: usize,
+    pub shb: usize,
+    pub dm: usize,
+    pub lc: usize,
+    pub lb: usize,
+    pub chi: usize,
+    pub dimp: usize,
+    pub snaplc: usize,
+    pub snaplb: usize,
     pub len: usize,
 }
 
 impl Offsets {
     /// A chain of `n` beads, a method of `stages` substeps, `probes`
     /// probes; `refine`: room for the local refinement's scratch; `rises`,
-    /// `amps`: how many of each the observers keep.
+    /// `amps`: how many of each the observers keep; `damped`: room for the
+    /// damping's constants and state.
     pub fn of(
         n: usize,
         stages: usize,
         probes: usize,
         refine: bool,
-        rises: usize,
-        amps: usize,
+        (rises, amps): (usize, usize),
+        damped: bool,
     ) -> Offsets {
         let mut at = SCALARS;
         let mut take = |len: usize| {
@@ -334,6 +390,19 @@ impl Offsets {
         let fl = take(m);
         let rise = take(rises * RISE_REALS);
         let amp = take(amps * AMP_REALS);
+        let (nc, nb) = if damped { (n + 1, n) } else { (0, 0) };
+        let beta = take(nc);
+        let imu = take(nc);
+        let mu = take(nc);
+        let sha = take(nc);
+        let shb = take(nc);
+        let dm = take(nb);
+        let lc = take(nc);
+        let lb = take(nb);
+        let chi = take(nc);
+        let dimp = take(nc);
+        let snaplc = take(nc);
+        let snaplb = take(nb);
         Offsets {
             w,
             im,
@@ -357,6 +426,18 @@ impl Offsets {
             fl,
             rise,
             amp,
+            beta,
+            imu,
+            mu,
+            sha,
+            shb,
+            dm,
+            lc,
+            lb,
+            chi,
+            dimp,
+            snaplc,
+            snaplb,
             len: at,
         }
     }
@@ -364,10 +445,12 @@ impl Offsets {
 
 /// The chain shader in `precision` (f64 or df64) for the pipeline `kernel`:
 /// its prelude (the real type and its arithmetic, the structs, scalars,
-/// codes and constants above, the bisection and the sine written out) and
+/// codes and constants above, the bisection and the sine written out),
+/// shaders/granular/damping.wgsl for a damped pipeline (undamped.wgsl,
+/// its functions doing nothing, for the others), and
 /// shaders/granular/chains.wgsl.
 pub fn chain_shader(precision: Precision, kernel: ChainKernel) -> String {
-    let ChainKernel { local, wg } = kernel;
+    let ChainKernel { local, wg, damped } = kernel;
     let mut s = String::from(
         "// Generated by src/backend/layout/granular.rs (the CPU–GPU boundary, defined once there);\n\
          // shaders/granular/chains.wgsl follows. Do not edit: change layout/granular.rs.\n",
@@ -400,8 +483,9 @@ pub fn chain_shader(precision: Precision, kernel: ChainKernel) -> String {
             "fn r_count(lo: u32, hi: u32) -> real { return f64(hi) * 4294967296.0 + f64(lo); }\nfn r_finite(a: real) -> bool { return abs(a) <= 1.7976931348623157e308; }\n"
         }
     });
-    let consts: [(&str, String); 12] = [
+    let consts: [(&str, String); 13] = [
         ("WG: u32", format!("{wg}u")),
+        ("DAMPED: bool", format!("{damped}")),
         ("LOCAL: bool", format!("{}", local > 0)),
         ("LV: u32", format!("{}u", local.max(1))),
         ("MAX_STAGES: u32", format!("{MAX_STAGES}u")),
@@ -454,6 +538,13 @@ pub fn chain_shader(precision: Precision, kernel: ChainKernel) -> String {
         "Peak(x, poly(c, x))",
     );
     s.push_str(&half_sine_wgsl(precision));
+    // The damping's functions, or their empty twins.
+    let damping = if damped {
+        include_str!("../../../shaders/granular/damping.wgsl")
+    } else {
+        include_str!("../../../shaders/granular/undamped.wgsl")
+    };
+    s.push_str(&super::body_for(damping, precision));
     let body = include_str!("../../../shaders/granular/chains.wgsl");
     s.push_str(&super::body_for(body, precision));
     s

@@ -346,12 +346,6 @@ impl Beads {
         !self.damped() && self.piston == 0.0
     }
 
-    /// Whether only the CPU engine runs this chain: the GPU kernel has no
-    /// damping substep yet (issue #45); pistons and drives it runs.
-    pub fn cpu_only(&self) -> bool {
-        self.damped()
-    }
-
     /// The speed every velocity error is relative to (m/s): the largest
     /// initial speed (a piston's among them), or the speed the pulse's
     /// impulse 2Fτ/π gives its bead.

@@ -146,7 +146,13 @@ fn run_in<R: Real>(b: &Beads, plan: &Plan, rows: &mut dyn Rows, whole: bool) -> 
 /// The energy the damping has taken so far (J; 0 without damping): each
 /// contact's and each bead's share, summed in f64 in their order.
 pub fn dissipated<R: Real>(st: &State<R>) -> f64 {
-    st.lost_c.iter().chain(&st.lost_b).map(|x| x.to64()).sum()
+    lost(&st.lost_c, &st.lost_b)
+}
+
+/// [`dissipated`] from the contacts' and the beads' shares (the GPU's
+/// energy snapshot keeps them apart from the state).
+pub fn lost<R: Real>(lost_c: &[R], lost_b: &[R]) -> f64 {
+    lost_c.iter().chain(lost_b).map(|x| x.to64()).sum()
 }
 
 /// The work a piston has done on the chain so far (J): its speed times the
