@@ -150,9 +150,11 @@ pub fn dissipated<R: Real>(st: &State<R>) -> f64 {
 }
 
 /// [`dissipated`] from the contacts' and the beads' shares (the GPU's
-/// energy snapshot keeps them apart from the state).
+/// energy snapshot keeps them apart from the state). Summed from +0, so
+/// that a chain without damping reports 0, not −0 (`Iterator::sum` of
+/// f64 starts at −0.0).
 pub fn lost<R: Real>(lost_c: &[R], lost_b: &[R]) -> f64 {
-    lost_c.iter().chain(lost_b).map(|x| x.to64()).sum()
+    lost_c.iter().chain(lost_b).fold(0.0, |a, x| a + x.to64())
 }
 
 /// The work a piston has done on the chain so far (J): its speed times the
