@@ -17,20 +17,11 @@ use crate::engine::real::{Df64, Real};
 use crate::engine::End;
 use crate::scene::Precision;
 
-macro_rules! header {
-    ($($(#[doc = $doc:literal])+ $field:ident,)+) => {
-        /// Per-scene header (all `u32`), the shader's `struct Header`.
-        #[repr(C)]
-        #[derive(Clone, Copy, Debug, Pod, Zeroable)]
-        pub struct GpuHeader {
-            $($(#[doc = $doc])+ pub $field: u32,)+
-        }
-        /// `GpuHeader`'s fields in order, with their docs (the WGSL comments).
-        pub const HEADER_FIELDS: &[(&str, &str)] = &[$((stringify!($field), concat!($($doc),+)),)+];
-    };
-}
-
-header! {
+words! {
+    /// Per-scene header (all `u32`), the shader's `struct Header`.
+    GpuHeader,
+    /// `GpuHeader`'s fields in order, with their docs (the WGSL comments).
+    HEADER_FIELDS,
     /// number of bodies
     nb,
     /// offset of this scene's parameters in `params` (PARAMS)

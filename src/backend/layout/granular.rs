@@ -84,21 +84,12 @@ pub const CODES: &[(&str, u32)] = &[
     ("ST_NON_FINITE", ST_NON_FINITE),
 ];
 
-macro_rules! chain_head {
-    ($($(#[doc = $doc:literal])+ $field:ident,)+) => {
-        /// One chain's header: sizes, the loop state kept between steps and
-        /// dispatches, and offsets of its reals (the shader's `struct Head`).
-        #[repr(C)]
-        #[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
-        pub struct ChainHead {
-            $($(#[doc = $doc])+ pub $field: u32,)+
-        }
-        /// `ChainHead`'s fields in order, with their docs (the WGSL comments).
-        pub const HEAD_FIELDS: &[(&str, &str)] = &[$((stringify!($field), concat!($($doc),+)),)+];
-    };
-}
-
-chain_head! {
+words! {
+    /// One chain's header: sizes, the loop state kept between steps and
+    /// dispatches, and offsets of its reals (the shader's `struct Head`).
+    ChainHead,
+    /// `ChainHead`'s fields in order, with their docs (the WGSL comments).
+    HEAD_FIELDS,
     /// beads
     n,
     /// substeps of the method

@@ -13,6 +13,23 @@ use std::fmt::Write;
 use crate::engine::real::{Df64, Real};
 use crate::scene::Precision;
 
+/// A header of `u32` words that crosses the boundary: the struct
+/// (`#[repr(C)]`, Pod) and a table of its fields in order with their docs,
+/// from which the prelude writes the WGSL struct with the docs as comments.
+macro_rules! words {
+    ($(#[doc = $sdoc:literal])+ $name:ident, $(#[doc = $tdoc:literal])+ $table:ident,
+     $($(#[doc = $doc:literal])+ $field:ident,)+) => {
+        $(#[doc = $sdoc])+
+        #[repr(C)]
+        #[derive(Clone, Copy, Debug, Default, bytemuck::Pod, bytemuck::Zeroable)]
+        pub struct $name {
+            $($(#[doc = $doc])+ pub $field: u32,)+
+        }
+        $(#[doc = $tdoc])+
+        pub const $table: &[(&str, &str)] = &[$((stringify!($field), concat!($($doc),+)),)+];
+    };
+}
+
 pub mod cradle;
 pub mod granular;
 
