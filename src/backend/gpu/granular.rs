@@ -135,24 +135,19 @@ struct Part {
     transfers: Vec<std::ops::Range<usize>>,
 }
 
-/// How many rises and amplitudes a chain's observers keep (`Watch::new`):
-/// one per probe under a piston, one per probe under a drive.
-fn watch_counts(b: &Beads) -> (usize, usize) {
-    let probes = b.probes.len();
-    let rises = if b.piston > 0.0 { probes } else { 0 };
-    let amps = match (&b.pulse, b.duration) {
-        (Some(p), Some(_)) if p.is_drive() => probes,
-        _ => 0,
-    };
-    (rises, amps)
-}
-
 /// Where a job's reals lie.
 fn offsets(job: &ChainJob) -> Offsets {
     let (b, plan) = (&job.beads, &job.plan);
     let refine = plan.substeps().refine.is_some();
     let (n, stages, probes) = (b.n, plan.weights.len(), b.probes.len());
-    Offsets::of(n, stages, probes, refine, watch_counts(b), b.damped())
+    Offsets::of(
+        n,
+        stages,
+        probes,
+        refine,
+        Watch::<f64>::counts(b),
+        b.damped(),
+    )
 }
 
 /// Pack one chain at reals offset `base` (its header, its reals, its
@@ -168,7 +163,6 @@ fn pack<R: Real>(job: &ChainJob, base: usize, probe_at: usize) -> (ChainHead, f6
     watch.see(b, &c, &st, R::zero());
     let refine = plan.substeps().refine;
     let o = offsets(job);
-    debug_assert_eq!(watch_counts(b), (watch.rises.len(), watch.amps.len()));
     let zero = R::zero();
     let mut r = vec![zero; o.len];
     let pulse = c.pulse.as_ref();
@@ -365,7 +359,7 @@ fn finish<R: Real>(job: &ChainJob, h: &ChainHead, reals: &[R], e_start: f64) -> 
     };
     let to64 = |x: Vec<R>| x.into_iter().map(|x| x.to64()).collect::<Vec<f64>>();
     let damped = b.damped();
-    let hc = b.damped() && reals[Sc::Hc as usize] != R::zero();
+    let hc = damped && reals[Sc::Hc as usize] != R::zero();
     let st = State {
         steps: ((h.steps_hi as u64) << 32) | h.steps_lo as u64,
         p: at(h.o_p, n + 1),
@@ -421,7 +415,7 @@ fn finish<R: Real>(job: &ChainJob, h: &ChainHead, reals: &[R], e_start: f64) -> 
         let lost = if damped {
             run::lost(&at(h.o_snaplc, n + 1), &at(h.o_snaplb, n))
         } else {
-            run::lost::<R>(&[], &[])
+            0.0
         };
         Some(e + lost - b.piston * reals[Sc::SnapWallImp as usize].to64())
     } else {
@@ -713,7 +707,7 @@ impl Gpu {
             // A piston's rises: 60 bisections per probe, once per run.
             let once = jobs
                 .iter()
-                .map(|j| 60 * watch_counts(&j.beads).0)
+                .map(|j| 60 * Watch::<f64>::counts(&j.beads).0)
                 .max()
                 .unwrap_or(0);
             (SOFTWARE_LOOPS.saturating_sub(once) / worst).max(1) as u32

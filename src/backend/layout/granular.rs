@@ -518,16 +518,7 @@ pub fn chain_shader(precision: Precision, kernel: ChainKernel) -> String {
         let doc = doc.split_whitespace().collect::<Vec<_>>().join(" ");
         let _ = writeln!(s, "// {doc}\nconst {name}: u32 = {i}u;");
     }
-    // observe::peak: 60 bisections of the derivative (observe::bisect),
-    // written out.
-    bisection(
-        &mut s,
-        precision,
-        "peak",
-        "Peak",
-        "r_gt(dpoly(c, m), ZERO)",
-        "Peak(x, poly(c, x))",
-    );
+    s.push_str(&peak_wgsl(precision));
     s.push_str(&half_sine_wgsl(precision));
     // The damping's functions, or their empty twins.
     let damping = if damped {
@@ -541,28 +532,26 @@ pub fn chain_shader(precision: Precision, kernel: ChainKernel) -> String {
     s
 }
 
-/// observe::bisect in WGSL, written out: `fn name(c: array<real, 6>) -> ty`,
-/// 60 bisections of [0, 1] while `before` (of `m`) holds, then `ret` (of
-/// `x`, the midpoint). ZERO in `before` is the precision's 0.
-fn bisection(s: &mut String, precision: Precision, name: &str, ty: &str, before: &str, ret: &str) {
+/// observe::peak in WGSL: 60 bisections of the quintic's derivative
+/// (observe::bisect), written out.
+fn peak_wgsl(precision: Precision) -> String {
     let half = real_literal(0.5, precision);
     let zero = real_literal(0.0, precision);
-    let before = before.replace("ZERO", &zero);
-    let _ = writeln!(
-        s,
-        "fn {name}(c: array<real, 6>) -> {ty} {{\n    var a = {zero};\n    var b = {};\n    var m: real;",
+    let mut s = format!(
+        "fn peak(c: array<real, 6>) -> Peak {{\n    var a = {zero};\n    var b = {};\n    var m: real;\n",
         real_literal(1.0, precision)
     );
     for _ in 0..60 {
         let _ = writeln!(
             s,
-            "    m = r_mul({half}, r_add(a, b));\n    if ({before}) {{ a = m; }} else {{ b = m; }}"
+            "    m = r_mul({half}, r_add(a, b));\n    if (r_gt(dpoly(c, m), {zero})) {{ a = m; }} else {{ b = m; }}"
         );
     }
     let _ = writeln!(
         s,
-        "    let x = r_mul({half}, r_add(a, b));\n    return {ret};\n}}"
+        "    let x = r_mul({half}, r_add(a, b));\n    return Peak(x, poly(c, x));\n}}"
     );
+    s
 }
 
 /// step::half_sine in WGSL: Horner with the factors as constants.

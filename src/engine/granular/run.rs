@@ -221,9 +221,23 @@ pub struct Watch<R = f64> {
 }
 
 impl<R: Real> Watch<R> {
+    /// How many rises and amplitudes the observers keep: one per probe
+    /// under a piston, one per probe under a drive (which has a duration);
+    /// the GPU sizes a chain's reals by it.
+    pub fn counts(b: &Beads) -> (usize, usize) {
+        let probes = b.probes.len();
+        let rises = if b.piston > 0.0 { probes } else { 0 };
+        let amps = match (&b.pulse, b.duration) {
+            (Some(p), Some(_)) if p.is_drive() => probes,
+            _ => 0,
+        };
+        (rises, amps)
+    }
+
     pub fn new(b: &Beads) -> Watch<R> {
         let vs = b.v_scale();
         let fs = b.mass.iter().cloned().fold(0.0, f64::max) * vs / b.time_scale();
+        let (rises, amps) = Self::counts(b);
         Watch {
             probes: vec![Default::default(); b.probes.len()],
             far: FirstPeak::default(),
@@ -231,16 +245,10 @@ impl<R: Real> Watch<R> {
             width: f64::NAN,
             floor_v: R::of(PEAK_FLOOR * vs),
             floor_f: R::of(PEAK_FLOOR * fs),
-            rises: if b.piston > 0.0 {
-                vec![Rise::default(); b.probes.len()]
-            } else {
-                vec![]
-            },
+            rises: vec![Rise::default(); rises],
             rise_level: R::of(0.5 * b.piston),
             amps: match (&b.pulse, b.duration) {
-                (Some(p), Some(end)) if p.is_drive() => {
-                    vec![Amplitude::new(0.5 * end, end, p.frequency); b.probes.len()]
-                }
+                (Some(p), Some(end)) => vec![Amplitude::new(0.5 * end, end, p.frequency); amps],
                 _ => vec![],
             },
         }
