@@ -695,15 +695,39 @@ fn damp<R: Real>(c: &Consts<R>, d: &super::DampConsts<R>, s: &mut State<R>, tau:
     }
     if d.gamma != zero || d.hc != zero {
         for (parity, t) in [(0, half), (1, tau), (0, half)] {
-            let mut j = s.lo + (s.lo + parity) % 2;
-            while j <= s.hi {
-                dashpot(c, d, s, j, t);
-                j += 2;
+            let first = s.lo + (s.lo + parity) % 2;
+            // Forward substeps (all of most methods') take the cheaper test
+            // of a pull ([`dashpot`]).
+            if t > zero {
+                let mut j = first;
+                while j <= s.hi {
+                    dashpot::<R, false>(c, d, s, j, t);
+                    j += 2;
+                }
+            } else {
+                dashpots_back(c, d, s, first, t);
             }
         }
     }
     if d.drag != zero {
         drag(d, s, half);
+    }
+}
+
+/// A sweep of dashpots back in time (`t` < 0: the negative substeps of
+/// some methods), out of line so that the forward sweeps' code stays small.
+#[inline(never)]
+fn dashpots_back<R: Real>(
+    c: &Consts<R>,
+    d: &super::DampConsts<R>,
+    s: &mut State<R>,
+    first: usize,
+    t: R,
+) {
+    let mut j = first;
+    while j <= s.hi {
+        dashpot::<R, true>(c, d, s, j, t);
+        j += 2;
     }
 }
 
@@ -730,13 +754,16 @@ fn drag<R: Real>(d: &super::DampConsts<R>, s: &mut State<R>, t: R) {
     let (zero, two, half) = (R::zero(), R::of(2.0), R::of(0.5));
     let x = d.drag * t;
     let f = (two - x) / (two + x);
-    for i in s.lo..s.hi {
-        let v = s.v[i];
-        if v != zero {
-            let vn = v * f;
-            s.v[i] = vn;
-            s.lost_b[i] = s.lost_b[i] + half * d.mass[i] * (v * v - vn * vn);
-        }
+    let (lo, hi) = (s.lo, s.hi);
+    let (v, lost, mass) = (&mut s.v[lo..hi], &mut s.lost_b[lo..hi], &d.mass[lo..hi]);
+    // Selects, not branches, so that the loop is vectorised: a bead at
+    // rest keeps its velocity's bits (−0 too) and its loss.
+    for ((v, lost), &m) in v.iter_mut().zip(lost.iter_mut()).zip(mass) {
+        let (v0, vn) = (*v, *v * f);
+        let moving = v0 != zero;
+        let l = *lost + half * m * (v0 * v0 - vn * vn);
+        *v = if moving { vn } else { v0 };
+        *lost = if moving { l } else { *lost };
     }
 }
 
@@ -751,15 +778,20 @@ fn drag<R: Real>(d: &super::DampConsts<R>, s: &mut State<R>, t: R) {
 /// the spring and this one). The kinetic energy it takes is kept per
 /// contact, the impulse on bead a in `scratch.dimp`.
 #[inline(always)]
-fn dashpot<R: Real>(c: &Consts<R>, d: &super::DampConsts<R>, s: &mut State<R>, j: usize, t: R) {
+fn dashpot<R: Real, const BACK: bool>(
+    c: &Consts<R>,
+    d: &super::DampConsts<R>,
+    s: &mut State<R>,
+    j: usize,
+    t: R,
+) {
     let (zero, two, half) = (R::zero(), R::of(2.0), R::of(0.5));
     let dl = c.d0[j] + s.p[j];
     // Closed: its spring pushes (k·δ^{3/2} > 0; ahead of a solitary wave a
     // precursor's contact at δ ~ 1e-200 does not, and its dashpot would
     // carry round-off-sized velocities along the whole chain, out of the
     // window's reach for no force that matters).
-    let spring = hertz(c.k[j], dl);
-    if spring <= zero {
+    if dl <= zero || dl.is_nan() {
         return;
     }
     let n = s.v.len();
@@ -770,26 +802,50 @@ fn dashpot<R: Real>(c: &Consts<R>, d: &super::DampConsts<R>, s: &mut State<R>, j
     if w == zero {
         return;
     }
+    // The spring's square root only where it is needed: an overlap of at
+    // least ε with k ≥ 1 pushes in any precision (k·δ^{3/2} ≥ ε^{3/2} is
+    // far from underflow), so only smaller ones test it; it is then needed
+    // by Hunt–Crossley and by a parting contact's pull limit. The same bits
+    // as computing it first (returning early changes nothing).
+    let k = c.k[j];
+    let spring = || hertz(k, dl);
+    if !(dl >= R::epsilon() && k >= R::one()) && spring() <= zero {
+        return;
+    }
     let mut beta = d.beta[j];
     if d.hc != zero {
+        let spring = spring();
         // Hunt–Crossley: χ·k·δ^{3/2} more, χ = a / the closing speed: the
         // largest the contact has closed at since it closed (at its first
         // substep closed, its overlap ≤ v·h, the impact's to
         // O((h/t_c)^{5/2}); a precursor's contact, closed long before its
         // wave comes, takes the wave's speed as it comes), at least
         // `chi_floor`, as the cradles' closing speed has a floor.
-        let chi = d.hc / w.abs().max(d.chi_floor);
-        if s.chi[j] == zero || (w > zero && chi < s.chi[j]) {
-            s.chi[j] = chi;
+        let speed = w.abs().max(d.chi_floor);
+        let old = s.chi[j];
+        // a/speed < χ_old needs a < χ_old·speed·(1 + 64ε) (the rounding of
+        // the product and the quotient is far below that margin): most
+        // substeps skip the division, with the same bits.
+        let margin = R::one() + R::of(64.0) * R::epsilon();
+        // (Bitwise & and |: one branch, rarely taken, for the coin toss of
+        // closing or parting.)
+        if (old == zero) | ((w > zero) & (d.hc < old * speed * margin)) {
+            let chi = d.hc / speed;
+            if old == zero || (w > zero && chi < old) {
+                s.chi[j] = chi;
+            }
         }
         beta = beta + s.chi[j] * spring * d.inv_mu[j];
     }
     let x = beta * t;
     let mut wn = w * (two - x) / (two + x);
-    if (wn - w) * t > zero {
-        // Pulling over this substep (for t < 0, a substep back in time,
-        // the same with the signs turned): at most the spring's push.
-        let lim = w + spring * t * d.inv_mu[j];
+    // Pulling over this substep (for t < 0, `BACK`, a substep back in
+    // time, the same with the signs turned): at most the spring's push.
+    // Forward only parting beads (w < 0) can pull, as the Cayley factor is
+    // in (−1, 1] and rounding is monotone: a test with no division behind
+    // it, so that a mispredicted branch costs less.
+    if (BACK || w < zero) && (wn - w) * t > zero {
+        let lim = w + spring() * t * d.inv_mu[j];
         if (wn - lim) * t > zero {
             wn = lim;
         }
