@@ -205,31 +205,106 @@ fn invalid_jobs_pass_through(b: &dyn Backend) {
     assert_eq!(out[1].status, Status::Ok);
 }
 
+/// Chains with known answers, on any backend: two equal beads exchange
+/// their velocities; Hunt–Crossley contacts part at e times their closing
+/// speed (to 1e-4, issue #45); a struck free dimer keeps its momentum to
+/// round-off; a precompressed chain between walls, and a column on its
+/// floor under gravity, stay at rest bit for bit; f64 and df64.
+fn chain_known_results(b: &dyn Backend) {
+    use hertz_cradle::backend::ChainJob;
+    use hertz_cradle::engine::granular::{self, Beads};
+    let rest = format!("velocity = [{}]\n", ["0.0"; 50].join(", "));
+    let scenes = [
+        "balls = 2\nradius = 0.005\n[launch]\nballs = 1\nvelocity = 0.1\n[probes]\nbeads = [0, 1]\n[solver]\ntolerance = 1e-10\n",
+        "balls = 2\nradius = 0.005\n[launch]\nballs = 1\nvelocity = 0.1\n[probes]\nbeads = [0, 1]\n[damping]\nrestitution = 0.5\n[stop]\nduration = 1e-4\n[solver]\ntolerance = 1e-8\n",
+        "balls = 30\nradius = 0.005\n[pattern]\nradius = [0.005, 0.0035]\n[launch]\nballs = 1\nvelocity = 0.1\n",
+        &format!("balls = 50\nradius = 0.005\n{rest}[walls]\nleft = true\nright = true\nprecompression = 10.0\n[stop]\nduration = 1e-4\n"),
+        &format!("balls = 50\nradius = 0.005\n{rest}[walls]\nleft = true\n[gravity]\ng = 9.80665\n[stop]\nduration = 1e-4\n"),
+    ];
+    let jobs: Vec<ChainJob> = [Precision::F64, Precision::Df64]
+        .into_iter()
+        .flat_map(|p| {
+            scenes.iter().map(move |&text| {
+                let s =
+                    Scene::from_toml_str("chain", text).unwrap_or_else(|e| panic!("{e}\n{text}"));
+                let solver = Solver::resolve(&s, &Overrides::default()).unwrap();
+                let beads = Beads::from_scene(&s);
+                let mut plan = granular::plan(&beads, &solver, None);
+                plan.precision = p;
+                ChainJob { beads, plan }
+            })
+        })
+        .collect();
+    let source = |k: usize| Ok(Some(jobs[k].clone()));
+    let out = b.run_chains(jobs.len(), &source).unwrap();
+    for (k, o) in out.iter().enumerate() {
+        let what = format!(
+            "{}: chain {} in {:?}",
+            b.name(),
+            k % 5,
+            jobs[k].plan.precision
+        );
+        assert_eq!(o.status, Status::Ok, "{what}: {o:?}");
+        // df64's pairs of f32 carry 48 bits.
+        let df = jobs[k].plan.precision == Precision::Df64;
+        match k % 5 {
+            0 => {
+                let e = (o.v[0] / 0.1).abs().max((o.v[1] / 0.1 - 1.0).abs());
+                assert!(e < if df { 1e-7 } else { 1e-9 }, "{what}: {:?}", o.v);
+            }
+            1 => {
+                let e = (o.v[1] - o.v[0]) / 0.1;
+                assert!((e - 0.5).abs() < 1e-4, "{what}: e = {e}");
+                assert!(o.energy_dissipated > 0.0, "{what}");
+            }
+            2 => assert!(
+                o.momentum_error < if df { 1e-9 } else { 1e-12 },
+                "{what}: {o:?}"
+            ),
+            _ => {
+                assert!(o.v.iter().all(|&v| v == 0.0), "{what}: {:?}", o.v);
+                assert!(
+                    o.steps > 10 && (o.t_end - 1e-4).abs() < 1e-9,
+                    "{what}: {o:?}"
+                );
+            }
+        }
+    }
+}
+
 // ---- instantiations -----------------------------------------------------
 
-#[test]
-fn cpu_known_results() {
-    known_results(&Cpu);
+/// Each case once per backend, as cubecl's runtime tests do: `cpu::<case>`
+/// and `gpu::<case>`. A GPU case skips with a printed reason where there is
+/// no adapter (a failure under CRADLE_REQUIRE_GPU=1, as in CI).
+macro_rules! per_backend {
+    ($($case:ident),* $(,)?) => {
+        mod cpu {
+            $(
+                #[test]
+                fn $case() {
+                    super::$case(&hertz_cradle::backend::cpu::Cpu);
+                }
+            )*
+        }
+        mod gpu {
+            $(
+                #[test]
+                fn $case() {
+                    if let Some(g) = super::gpu() {
+                        super::$case(g);
+                    }
+                }
+            )*
+        }
+    };
 }
 
-#[test]
-fn gpu_known_results() {
-    if let Some(g) = gpu() {
-        known_results(g);
-    }
-}
-
-#[test]
-fn cpu_invalid_jobs_pass_through() {
-    invalid_jobs_pass_through(&Cpu);
-}
-
-#[test]
-fn gpu_invalid_jobs_pass_through() {
-    if let Some(g) = gpu() {
-        invalid_jobs_pass_through(g);
-    }
-}
+per_backend!(
+    known_results,
+    invalid_jobs_pass_through,
+    chain_known_results
+);
 
 #[test]
 fn gpu_matches_cpu_on_1200_scenes_f64() {
