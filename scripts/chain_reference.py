@@ -102,6 +102,17 @@ def overlaps(c, y):
     return np.concatenate((d, np.where(d > 0.0, s, 1.0)))
 
 
+def first_zero(f, lo, hi):
+    """The first t in [lo, hi] where f (> 0 at lo, <= 0 at hi) stops being
+    positive: a bead's velocity maximum. brentq alone returns any exact zero
+    it lands on, and a bead that flies free after its push (a gap ahead, a
+    slack contact behind) has a = 0 exactly over a plateau: its maximum's
+    time is the plateau's start, as the engine's observer takes it."""
+    from scipy.optimize import brentq
+
+    return brentq(lambda t: f(t) if f(t) > 0.0 else -1.0, lo, hi, xtol=1e-300, rtol=1e-15, maxiter=1000)
+
+
 def integrate(c, rtol, t_ends):
     """The reference's final velocities at each of t_ends and each probe's
     local velocity maxima above the floor, in time order (time, value):
@@ -161,8 +172,12 @@ def integrate(c, rtol, t_ends):
                     m = int(np.nonzero(pos[1:, j] != pos[:-1, j])[0][0])
                     lo, hi = ts_[m], ts_[m + 1]
                     x = brentq(lambda tt: overlaps(c, dense(tt))[j], lo, hi, xtol=1e-300, rtol=1e-15, maxiter=1000)
-                    # A crossing at the step's start (the restart's own) is no kink inside it.
-                    if x - t0 > 1e-9 * (t1 - t0):
+                    # A crossing at the step's start (the restart's own) is no
+                    # kink inside it: within 1e-9 of the step, or within what
+                    # brentq resolves of the time (rtol 1e-15 of t; a restart at
+                    # a root on the crossing's near side would otherwise find it
+                    # again and again, ~1e-18 s on, forever).
+                    if x - t0 > max(1e-9 * (t1 - t0), 64 * np.spacing(t0)):
                         tc = min(tc, x)
                 if tc < t1:
                     # Redo [t0, tc] (no kink inside), then restart at tc.
@@ -177,7 +192,7 @@ def integrate(c, rtol, t_ends):
                             if a0[i] > 0 >= a1[i]:
                                 dd = seg.dense_output() if seg.t_old is not None else None
                                 if dd is not None:
-                                    tp = brentq(lambda tt: rhs(tt, dd(tt))[n + i], seg.t_old, t1, xtol=1e-300, rtol=1e-15, maxiter=1000)
+                                    tp = first_zero(lambda tt: rhs(tt, dd(tt))[n + i], seg.t_old, t1)
                                     vp = dd(tp)[n + i]
                                     if vp > floor:
                                         found[i].append((tp, vp))
@@ -193,7 +208,7 @@ def integrate(c, rtol, t_ends):
                 for i in c["probes"]:
                     if a0[i] > 0 >= a1[i]:
                         dense = solver.dense_output()
-                        tp = brentq(lambda tt: rhs(tt, dense(tt))[n + i], t0, t1, xtol=1e-300, rtol=1e-15, maxiter=1000)
+                        tp = first_zero(lambda tt: rhs(tt, dense(tt))[n + i], t0, t1)
                         vp = dense(tp)[n + i]
                         if vp > floor:
                             found[i].append((tp, vp))
