@@ -54,6 +54,69 @@ pin rocking.csv "$T/rocking.csv"
 q sweep "$ex/stress.toml" --backend cpu --out "$T/stress.csv"
 pin stress.csv "$T/stress.csv"
 
+# Granular chains: a dimer against a wall with dashpots, Hunt–Crossley
+# contacts and air drag, swept over the viscosity and the restitution, in
+# f64 with kahanli6 and with yoshida4 (a substep back in time), and in df64;
+# and one chain pushed every way of issue #45 (a piston, a drive, gravity,
+# dashpots between precompressed walls).
+cat >"$T/chain.toml" <<'EOF'
+balls = 40
+radius = 0.005
+[pattern]
+radius = [0.005, 0.0035]
+[walls]
+right = true
+[launch]
+balls = 1
+velocity = 0.1
+[probes]
+beads = [10, 30]
+[damping]
+viscosity = 0.5
+air_drag = 20.0
+[stop]
+duration = 2e-4
+EOF
+cat >"$T/chains.toml" <<'EOF'
+scene = "chain.toml"
+[[axis]]
+param = "damping.viscosity"
+values = [0.0, 0.5, 5.0]
+[[axis]]
+param = "damping.restitution"
+values = [0.95, 0.5]
+EOF
+q sweep "$T/chains.toml" --backend cpu --tolerance 1e-5 --out "$T/chains.csv"
+pin chains_damped.csv "$T/chains.csv"
+q sweep "$T/chains.toml" --backend cpu --tolerance 1e-5 --method yoshida4 --out "$T/chains_y4.csv"
+pin chains_damped_yoshida4.csv "$T/chains_y4.csv"
+q sweep "$T/chains.toml" --backend cpu --tolerance 1e-4 --precision df64 --out "$T/chains_df64.csv"
+pin chains_damped_df64.csv "$T/chains_df64.csv"
+cat >"$T/pushed.toml" <<'EOF'
+balls = 40
+radius = 0.005
+[walls]
+left = true
+right = true
+precompression = 2.0
+[piston]
+velocity = 0.05
+[drive]
+bead = 20
+force = 0.05
+frequency = 20000.0
+[gravity]
+g = 9.80665
+[damping]
+viscosity = 1.0
+[probes]
+beads = [5, 30]
+[stop]
+duration = 3e-4
+EOF
+q run "$T/pushed.toml" --format csv >"$T/pushed.csv"
+pin chain_pushed.csv "$T/pushed.csv"
+
 # A refined sweep, its Parquet twin, and its fill.
 cat >"$T/refine.toml" <<'EOF'
 [scene]
