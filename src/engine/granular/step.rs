@@ -610,9 +610,16 @@ fn step_portable<R: Real>(c: &Consts<R>, s: &mut State<R>, t0: R, h: R, m: &Subs
                 // Drift, damp, drift: a symmetric substep, so the
                 // composition keeps its order ([`damp`]).
                 let tau = wj * h;
-                drift(s, half * tau, c.piston);
-                damp(c, d, s, tau);
-                drift(s, half * tau, c.piston);
+                if d.drag != R::zero() {
+                    // The air drag's halves ride in the drifts' passes.
+                    drift_drag::<R, false>(d, s, half * tau, c.piston);
+                    damp(c, d, s, tau);
+                    drift_drag::<R, true>(d, s, half * tau, c.piston);
+                } else {
+                    drift(s, half * tau, c.piston);
+                    damp(c, d, s, tau);
+                    drift(s, half * tau, c.piston);
+                }
             }
         }
         t = t + wj * h;
@@ -690,9 +697,6 @@ fn step_portable<R: Real>(c: &Consts<R>, s: &mut State<R>, t0: R, h: R, m: &Subs
 fn damp<R: Real>(c: &Consts<R>, d: &super::DampConsts<R>, s: &mut State<R>, tau: R) {
     let zero = R::zero();
     let half = R::of(0.5) * tau;
-    if d.drag != zero {
-        drag(d, s, half);
-    }
     if d.gamma != zero || d.hc != zero {
         for (parity, t) in [(0, half), (1, tau), (0, half)] {
             let first = s.lo + (s.lo + parity) % 2;
@@ -708,9 +712,6 @@ fn damp<R: Real>(c: &Consts<R>, d: &super::DampConsts<R>, s: &mut State<R>, tau:
                 dashpots_back(c, d, s, first, t);
             }
         }
-    }
-    if d.drag != zero {
-        drag(d, s, half);
     }
 }
 
@@ -747,23 +748,95 @@ fn closing_correction<R: Real>(
         .then(|| -(d.gamma * b) - s.scratch.dimp[j])
 }
 
-/// The air drag for `t`: every moving bead's velocity times the Cayley map
-/// of c·t, the kinetic energy it loses kept per bead.
+/// A drift of `dt` and the air drag for `dt` in one pass (`DRAG_FIRST`:
+/// the drag, then the drift; else the drift, then the drag): the drag
+/// multiplies every moving bead's velocity by the Cayley map of c·dt and
+/// keeps the kinetic energy it takes per bead. The same operations on each
+/// value as the drift's pass followed (or preceded) by the drag's, so the
+/// same bits, in one pass over the window instead of two: contact j's
+/// iteration reads its two beads' velocities and writes bead j − 1's, whose
+/// last reader it is (a loop that vectorises).
 #[inline(always)]
-fn drag<R: Real>(d: &super::DampConsts<R>, s: &mut State<R>, t: R) {
+fn drift_drag<R: Real, const DRAG_FIRST: bool>(
+    d: &super::DampConsts<R>,
+    s: &mut State<R>,
+    dt: R,
+    piston: R,
+) {
     let (zero, two, half) = (R::zero(), R::of(2.0), R::of(0.5));
-    let x = d.drag * t;
+    let x = d.drag * dt;
     let f = (two - x) / (two + x);
+    let n = s.v.len();
     let (lo, hi) = (s.lo, s.hi);
-    let (v, lost, mass) = (&mut s.v[lo..hi], &mut s.lost_b[lo..hi], &d.mass[lo..hi]);
-    // Selects, not branches, so that the loop is vectorised: a bead at
-    // rest keeps its velocity's bits (−0 too) and its loss.
-    for ((v, lost), &m) in v.iter_mut().zip(lost.iter_mut()).zip(mass) {
-        let (v0, vn) = (*v, *v * f);
-        let moving = v0 != zero;
-        let l = *lost + half * m * (v0 * v0 - vn * vn);
-        *v = if moving { vn } else { v0 };
-        *lost = if moving { l } else { *lost };
+    if lo == hi {
+        return;
+    }
+    // A bead's velocity after the drag, and its loss (selects, not
+    // branches: a bead at rest keeps its velocity's bits, −0 too).
+    let vel = |v: R| if v != zero { v * f } else { v };
+    let dragged = |v: R, lost: R, m: R| {
+        let vn = v * f;
+        let l = lost + half * m * (v * v - vn * vn);
+        let moving = v != zero;
+        (if moving { vn } else { v }, if moving { l } else { lost })
+    };
+    // The wall contacts read the velocities before the drag or after it.
+    let ends = |s: &mut State<R>| {
+        if lo == 0 {
+            if piston == zero {
+                s.p[0] = s.p[0] - dt * s.v[0];
+            } else {
+                s.p[0] = s.p[0] + dt * (piston - s.v[0]);
+            }
+            s.x0 = s.x0 + dt * s.v[0];
+        }
+        if hi == n {
+            s.p[n] = s.p[n] + dt * s.v[n - 1];
+        }
+    };
+    if !DRAG_FIRST {
+        ends(s);
+    }
+    // Contacts a ..= z between beads. Bead a − 1 is outside the window
+    // unless a = 1 = lo + 1: its contact takes the drift alone.
+    let (mut a, z) = (lo.max(1), hi.min(n - 1));
+    if a <= z && a - 1 < lo {
+        let vb = s.v[a];
+        let vb = if DRAG_FIRST { vel(vb) } else { vb };
+        s.p[a] = s.p[a] + dt * (s.v[a - 1] - vb);
+        a += 1;
+    }
+    if a <= z {
+        // Contact a + k between beads a − 1 + k and a + k; bead a − 1 + k
+        // is dragged at it.
+        let p = &mut s.p[a..=z];
+        let v = &mut s.v[a - 1..=z];
+        let lost = &mut s.lost_b[a - 1..z];
+        let m = &d.mass[a - 1..z];
+        let len = p.len();
+        assert!(v.len() == len + 1 && lost.len() == len && m.len() == len);
+        for k in 0..len {
+            let (va, la) = dragged(v[k], lost[k], m[k]);
+            let (v0, v1) = if DRAG_FIRST {
+                (va, vel(v[k + 1]))
+            } else {
+                (v[k], v[k + 1])
+            };
+            p[k] = p[k] + dt * (v0 - v1);
+            v[k] = va;
+            lost[k] = la;
+        }
+    }
+    // The beads with no contact to their right in the loop: the last one
+    // when the window reaches the right wall; every bead of a window with
+    // no contact between beads.
+    for i in z.max(lo)..hi {
+        let (vn, l) = dragged(s.v[i], s.lost_b[i], d.mass[i]);
+        s.v[i] = vn;
+        s.lost_b[i] = l;
+    }
+    if DRAG_FIRST {
+        ends(s);
     }
 }
 
