@@ -692,7 +692,9 @@ fn step_portable<R: Real>(c: &Consts<R>, s: &mut State<R>, t0: R, h: R, m: &Subs
 /// bead) — each part by the Cayley map x ↦ (2 − x)/(2 + x) of its decay
 /// (second order, symmetric: its inverse is itself at −τ). A drift–damp–
 /// drift substep is then symmetric and of order 2 like the Verlet one it
-/// replaces, and the compositions keep their orders.
+/// replaces, and the compositions keep their orders. This function sweeps
+/// the dashpots; the air drag's two halves are done in the passes of the
+/// half-drifts around it ([`drift_drag`]).
 #[inline(always)]
 fn damp<R: Real>(c: &Consts<R>, d: &super::DampConsts<R>, s: &mut State<R>, tau: R) {
     let zero = R::zero();
