@@ -392,7 +392,16 @@ fn drift<R: Real>(s: &mut State<R>, dt: R, piston: R) {
             p[j] = p[j] + dt * (v[j] - v[j + 1]);
         }
     }
-    if lo == 0 {
+    drift_walls(s, dt, piston);
+}
+
+/// The drift of the wall contacts in the window (contact 0 when it starts
+/// at bead 0, contact n when it ends at the last bead), and of bead 0's
+/// position.
+#[inline(always)]
+fn drift_walls<R: Real>(s: &mut State<R>, dt: R, piston: R) {
+    let n = s.v.len();
+    if s.lo == 0 {
         if piston == R::zero() {
             s.p[0] = s.p[0] - dt * s.v[0];
         } else {
@@ -400,7 +409,7 @@ fn drift<R: Real>(s: &mut State<R>, dt: R, piston: R) {
         }
         s.x0 = s.x0 + dt * s.v[0];
     }
-    if hi == n {
+    if s.hi == n {
         s.p[n] = s.p[n] + dt * s.v[n - 1];
     }
 }
@@ -783,21 +792,8 @@ fn drift_drag<R: Real, const DRAG_FIRST: bool>(
         (if moving { vn } else { v }, if moving { l } else { lost })
     };
     // The wall contacts read the velocities before the drag or after it.
-    let ends = |s: &mut State<R>| {
-        if lo == 0 {
-            if piston == zero {
-                s.p[0] = s.p[0] - dt * s.v[0];
-            } else {
-                s.p[0] = s.p[0] + dt * (piston - s.v[0]);
-            }
-            s.x0 = s.x0 + dt * s.v[0];
-        }
-        if hi == n {
-            s.p[n] = s.p[n] + dt * s.v[n - 1];
-        }
-    };
     if !DRAG_FIRST {
-        ends(s);
+        drift_walls(s, dt, piston);
     }
     // Contacts a ..= z between beads. Bead a − 1 is outside the window
     // unless a = 1 = lo + 1: its contact takes the drift alone.
@@ -838,7 +834,7 @@ fn drift_drag<R: Real, const DRAG_FIRST: bool>(
         s.lost_b[i] = l;
     }
     if DRAG_FIRST {
-        ends(s);
+        drift_walls(s, dt, piston);
     }
 }
 
