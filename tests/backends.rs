@@ -9,7 +9,8 @@ use std::sync::OnceLock;
 
 use hertz_cradle::backend::cpu::Cpu;
 use hertz_cradle::backend::gpu::{find_adapter, shader_source, ChainKernel, Gpu, Profile, Want};
-use hertz_cradle::backend::{Backend, Job};
+use hertz_cradle::backend::{Backend, ChainJob, Job};
+use hertz_cradle::engine::granular::{self, Beads};
 use hertz_cradle::engine::{Chain, Outcome, Overrides, Solver, Status};
 use hertz_cradle::scene::{Method, Precision, Scene};
 
@@ -62,6 +63,17 @@ fn job_with(
         chain: Chain::from_scene(&s).unwrap(),
         solver: Solver::resolve(&s, &o).unwrap(),
     }
+}
+
+/// A granular chain's job from scene text: the step rule's plan from the
+/// scene's own solver settings, run in `precision`.
+fn chain_job(text: &str, precision: Precision) -> ChainJob {
+    let s = Scene::from_toml_str("chain", text).unwrap_or_else(|e| panic!("{e}\n{text}"));
+    let solver = Solver::resolve(&s, &Overrides::default()).unwrap();
+    let beads = Beads::from_scene(&s);
+    let mut plan = granular::plan(&beads, &solver, None);
+    plan.precision = precision;
+    ChainJob { beads, plan }
 }
 
 fn v_in(j: &Job) -> f64 {
@@ -211,8 +223,6 @@ fn invalid_jobs_pass_through(b: &dyn Backend) {
 /// round-off; a precompressed chain between walls, and a column on its
 /// floor under gravity, stay at rest bit for bit; f64 and df64.
 fn chain_known_results(b: &dyn Backend) {
-    use hertz_cradle::backend::ChainJob;
-    use hertz_cradle::engine::granular::{self, Beads};
     let rest = format!("velocity = [{}]\n", ["0.0"; 50].join(", "));
     let scenes = [
         "balls = 2\nradius = 0.005\n[launch]\nballs = 1\nvelocity = 0.1\n[probes]\nbeads = [0, 1]\n[solver]\ntolerance = 1e-10\n",
@@ -223,17 +233,7 @@ fn chain_known_results(b: &dyn Backend) {
     ];
     let jobs: Vec<ChainJob> = [Precision::F64, Precision::Df64]
         .into_iter()
-        .flat_map(|p| {
-            scenes.iter().map(move |&text| {
-                let s =
-                    Scene::from_toml_str("chain", text).unwrap_or_else(|e| panic!("{e}\n{text}"));
-                let solver = Solver::resolve(&s, &Overrides::default()).unwrap();
-                let beads = Beads::from_scene(&s);
-                let mut plan = granular::plan(&beads, &solver, None);
-                plan.precision = p;
-                ChainJob { beads, plan }
-            })
-        })
+        .flat_map(|p| scenes.iter().map(move |&text| chain_job(text, p)))
         .collect();
     let source = |k: usize| Ok(Some(jobs[k].clone()));
     let out = b.run_chains(jobs.len(), &source).unwrap();
@@ -1277,8 +1277,7 @@ fn gpu_profiles_parse_with_clear_errors() {
 /// of 10^4-bead chains whose reals go up and come back in several groups.
 #[test]
 fn gpu_chain_kernel_gives_the_cpus_chain_outcomes() {
-    use hertz_cradle::backend::ChainJob;
-    use hertz_cradle::engine::granular::{self, Beads, ChainOutcome};
+    use hertz_cradle::engine::granular::ChainOutcome;
     let Some(g) = gpu() else { return };
     let scenes = [
         // struck free chain, default end (the far bead's first peak); a
@@ -1294,13 +1293,7 @@ fn gpu_chain_kernel_gives_the_cpus_chain_outcomes() {
     ];
     let mut jobs: Vec<Option<ChainJob>> = scenes
         .iter()
-        .map(|text| {
-            let s = Scene::from_toml_str("chain", text).unwrap_or_else(|e| panic!("{e}\n{text}"));
-            let solver = Solver::resolve(&s, &Overrides::default()).unwrap();
-            let beads = Beads::from_scene(&s);
-            let plan = granular::plan(&beads, &solver, None);
-            Some(ChainJob { beads, plan })
-        })
+        .map(|text| Some(chain_job(text, Precision::F64)))
         .collect();
     // A step cap mid-run (and a count that crosses a dispatch).
     let mut capped = jobs[0].clone().unwrap();
@@ -1323,12 +1316,7 @@ fn gpu_chain_kernel_gives_the_cpus_chain_outcomes() {
     let column = "balls = 60\nradius = 0.005\n[pattern]\nradius = [0.005, 0.0035]\n[walls]\nleft = true\n[gravity]\ng = 9.80665\n[pulse]\nbead = 59\nforce = -0.5\nduration = 1e-5\n[probes]\nbeads = [10, 40]\n[stop]\nduration = 3e-4\n";
     let columns = jobs.len();
     for p in [Precision::F64, Precision::Df64] {
-        let s = Scene::from_toml_str("column", column).unwrap();
-        let solver = Solver::resolve(&s, &Overrides::default()).unwrap();
-        let beads = Beads::from_scene(&s);
-        let mut plan = granular::plan(&beads, &solver, None);
-        plan.precision = p;
-        jobs.push(Some(ChainJob { beads, plan }));
+        jobs.push(Some(chain_job(column, p)));
     }
     // A piston (the left wall moving in: its impulse, the front's rise at
     // each probe), a piston with a pulse on the far bead (the energy
@@ -1348,12 +1336,7 @@ fn gpu_chain_kernel_gives_the_cpus_chain_outcomes() {
     let (pushes, kinds) = (jobs.len(), pushed.len());
     for p in [Precision::F64, Precision::Df64] {
         for text in pushed {
-            let s = Scene::from_toml_str("pushed", text).unwrap_or_else(|e| panic!("{e}\n{text}"));
-            let solver = Solver::resolve(&s, &Overrides::default()).unwrap();
-            let beads = Beads::from_scene(&s);
-            let mut plan = granular::plan(&beads, &solver, None);
-            plan.precision = p;
-            jobs.push(Some(ChainJob { beads, plan }));
+            jobs.push(Some(chain_job(text, p)));
         }
     }
     // 24 precompressed chains of 10^4 beads (a short pulse run): ~25 MB of
@@ -1362,11 +1345,7 @@ fn gpu_chain_kernel_gives_the_cpus_chain_outcomes() {
     let long = "balls = 10000\nradius = 0.005\n[walls]\nleft = true\nright = true\nprecompression = 10.0\n[pulse]\nbead = 0\nforce = 0.1\nduration = 1e-5\n[probes]\nbeads = [2500, 7500]\n[stop]\nduration = 2e-5\n";
     for k in 0..24 {
         let text = long.replace("10.0", &format!("{}", 1.0 + k as f64));
-        let s = Scene::from_toml_str("chain", &text).unwrap();
-        let solver = Solver::resolve(&s, &Overrides::default()).unwrap();
-        let beads = Beads::from_scene(&s);
-        let plan = granular::plan(&beads, &solver, None);
-        jobs.push(Some(ChainJob { beads, plan }));
+        jobs.push(Some(chain_job(&text, Precision::F64)));
     }
     let source = |k: usize| Ok(jobs[k].clone());
     let cpu = Cpu.run_chains(jobs.len(), &source).unwrap();
@@ -1499,8 +1478,7 @@ fn gpu_chain_kernel_gives_the_cpus_chain_outcomes() {
 /// light beads rattle.
 #[test]
 fn gpu_error_control_gives_the_cpus_rows() {
-    use hertz_cradle::backend::{run_chains_controlled, ChainJob};
-    use hertz_cradle::engine::granular::{self, Beads};
+    use hertz_cradle::backend::run_chains_controlled;
     let Some(g) = gpu() else { return };
     let dimer = "balls = 20\nradius = 0.005\n[pattern]\nradius = [0.005, 0.0019]\n[walls]\nright = true\n[launch]\nballs = 1\nvelocity = 0.1\n[probes]\nbeads = [5, 15]\n";
     let scenes = [

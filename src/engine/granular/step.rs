@@ -714,15 +714,27 @@ fn damp<R: Real>(c: &Consts<R>, d: &super::DampConsts<R>, s: &mut State<R>, tau:
             // Forward substeps (all of most methods') take the cheaper test
             // of a pull ([`dashpot`]).
             if t > zero {
-                let mut j = first;
-                while j <= s.hi {
-                    dashpot::<R, false>(c, d, s, j, t);
-                    j += 2;
-                }
+                sweep::<R, false>(c, d, s, first, t);
             } else {
                 dashpots_back(c, d, s, first, t);
             }
         }
+    }
+}
+
+/// The dashpots of contacts `first`, `first` + 2, … in the window for `t`.
+#[inline(always)]
+fn sweep<R: Real, const BACK: bool>(
+    c: &Consts<R>,
+    d: &super::DampConsts<R>,
+    s: &mut State<R>,
+    first: usize,
+    t: R,
+) {
+    let mut j = first;
+    while j <= s.hi {
+        dashpot::<R, BACK>(c, d, s, j, t);
+        j += 2;
     }
 }
 
@@ -736,11 +748,7 @@ fn dashpots_back<R: Real>(
     first: usize,
     t: R,
 ) {
-    let mut j = first;
-    while j <= s.hi {
-        dashpot::<R, true>(c, d, s, j, t);
-        j += 2;
-    }
+    sweep::<R, true>(c, d, s, first, t);
 }
 
 /// The impulse on bead a that contact j's dashpot missed in the step, if it
@@ -786,17 +794,16 @@ fn drift_drag<R: Real, const DRAG_FIRST: bool>(
     // branches: a bead at rest keeps its velocity's bits, −0 too).
     let vel = |v: R| if v != zero { v * f } else { v };
     let dragged = |v: R, lost: R, m: R| {
-        let vn = v * f;
+        let vn = vel(v);
         let l = lost + half * m * (v * v - vn * vn);
-        let moving = v != zero;
-        (if moving { vn } else { v }, if moving { l } else { lost })
+        (vn, if v != zero { l } else { lost })
     };
     // The wall contacts read the velocities before the drag or after it.
     if !DRAG_FIRST {
         drift_walls(s, dt, piston);
     }
-    // Contacts a ..= z between beads. Bead a − 1 is outside the window
-    // unless a = 1 = lo + 1: its contact takes the drift alone.
+    // Contacts a ..= z between beads. Unless the window starts at bead 0,
+    // bead a − 1 is outside it: its contact takes the drift alone.
     let (mut a, z) = (lo.max(1), hi.min(n - 1));
     if a <= z && a - 1 < lo {
         let vb = s.v[a];
