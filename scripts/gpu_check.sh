@@ -21,7 +21,10 @@
 #             capped at STRESS_CAP seconds.
 #   struck    1,000 struck chains of 1,000 beads (issue #30's target).
 #   dimer     512 struck 100-bead dimer chains (8 radius ratios x 64 speeds).
-#             Both also on the chain kernel's global path
+#   damped    256 struck 300-bead chains with dashpots and air drag
+#             (viscosity 0.5 N s/m, air drag 20/s; issue #45's damped kernel,
+#             never timed on hardware before commit c968fea).
+#             struck and dimer also on the chain kernel's global path
 #             (CRADLE_GPU_PROFILE=hardware,chain_local=false: every chain's
 #             velocities and forces in the storage buffer, as before the
 #             workgroup-memory path), same binary, same call.
@@ -30,7 +33,8 @@
 #             5.6 million steps at 1e-8) under the error control on the GPU
 #             in f64 (~100 s on an H200; df64 took over 170 s for its first
 #             tolerance there, CONTRACT_PRECISIONS="f64 df64" to try); its JSON
-#             comes back in $OUT, for the reference here:
+#             comes back in $OUT, for the reference here
+#             (CONTRACT_ONLY=damped: only the chains whose name holds it):
 #             scripts/chain_reference.py, chain_contract_table.py --backends.
 # Environment: CAP (seconds per chain run, default 120), GRID_CAP (per grid1000
 # run, default 45), STRESS_CAP (the GPU's stress run, default 60),
@@ -116,6 +120,22 @@ linspace = [0.002, 0.005, 8]
 param = "launch.velocity"
 logspace = [0.01, 1.0, 64]
 T
+cat >"$w/damped.toml" <<'T'
+[scene]
+balls = 300
+radius = 0.005
+[scene.launch]
+balls = 1
+velocity = 0.1
+[scene.probes]
+beads = [75, 225]
+[scene.damping]
+viscosity = 0.5
+air_drag = 20.0
+[[axis]]
+param = "launch.velocity"
+logspace = [0.01, 1.0, 256]
+T
 cp grid1000.toml stress.toml "$w/"
 
 # run NAME CAP PROFILE ARGS...: one `cradle` call under `timeout`; its wall
@@ -160,6 +180,8 @@ run struck_cpu        "$CAP" "" sweep $w/struck.toml --out $w/struck_cpu.csv --b
 run dimer_gpu         "$CAP" "" sweep $w/dimer.toml --out $w/dimer_gpu.csv --backend gpu
 run dimer_gpu_global  "$CAP" "hardware,chain_local=false" sweep $w/dimer.toml --out $w/dimer_gpu_global.csv --backend gpu
 run dimer_cpu         "$CAP" "" sweep $w/dimer.toml --out $w/dimer_cpu.csv --backend cpu
+run damped_gpu        "$CAP" "" sweep $w/damped.toml --out $w/damped_gpu.csv --backend gpu
+run damped_cpu        "$CAP" "" sweep $w/damped.toml --out $w/damped_cpu.csv --backend cpu
 i=0; IFS=';' read -ra cshapes <<<"${CHAIN_SHAPES:-}"
 for p in "${cshapes[@]}"; do
   i=$((i + 1)); echo "$p" >"$w/chain_shape$i.profile"
@@ -172,7 +194,7 @@ if [ -x ./chain_contract ] && ! [[ " $SKIP " == *" contract "* ]]; then
   for p in ${CONTRACT_PRECISIONS:-f64}; do
     c=$(capped "$CAP"); [ "$c" = 0 ] && { log "contract_gpu_$p: not run (deadline)"; continue; }
     s=$(date +%s.%N)
-    timeout -k 5 "$c" ./chain_contract "$w/contract_$p.json" --skip "sensitive: 30" --backend gpu --precision $p >"$w/contract_$p.log" 2>&1
+    timeout -k 5 "$c" ./chain_contract "$w/contract_$p.json" ${CONTRACT_ONLY:-} --skip "sensitive: 30" --backend gpu --precision $p >"$w/contract_$p.log" 2>&1
     log "contract_gpu_$p       exit $? in $(python3 -c "print(f'{$(date +%s.%N)-$s:.2f}')") s: $(tail -2 "$w/contract_$p.log" | tr '\n' ' ')"
     [ -f "$w/contract_$p.json" ] && gzip -c "$w/contract_$p.json" >"$out/contract_$p.json.gz"
   done
@@ -193,7 +215,9 @@ def gpu_stats(n):
     d = g.get("gpu", {})
     if not d: return ""
     return (f"{d.get('dispatches', 0)} dispatches, {d.get('rounds', 0)} rounds, "
-            f"in flight {d.get('in_flight_fraction', 0):.2f}, on cpu {d.get('scenes_on_cpu', 0)}")
+            f"in flight {d.get('in_flight_fraction', 0):.2f}, on cpu {d.get('scenes_on_cpu', 0)}"
+            + (f"; host s: packing {d.get('packing', 0):.2f}, unpacking {d.get('unpacking', 0):.2f}, "
+               f"compiling {d['compiling']:.2f}" if 'compiling' in d else ""))
 done = {}  # tables already compared: a table with the same bytes reuses the result
 def diff(a, b):
     """Largest difference of a numeric outcome column relative to that column's
@@ -255,6 +279,8 @@ rows += [
     ("dimer 512 x 100 beads GPU", "dimer_gpu", "dimer_cpu"),
     ("dimer 512 x 100 beads GPU, global path", "dimer_gpu_global", "dimer_cpu"),
     ("dimer 512 x 100 beads CPU", "dimer_cpu", None),
+    ("damped 256 x 300 beads GPU", "damped_gpu", "damped_cpu"),
+    ("damped 256 x 300 beads CPU", "damped_cpu", None),
 ]
 i = 1
 while os.path.exists(f"{w}/chain_shape{i}.profile"):

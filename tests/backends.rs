@@ -1203,6 +1203,37 @@ fn gpu_sweep_builds_every_pipeline_before_its_first_scene() {
         4,
         "{rows}"
     );
+    // A chain sweep whose axis switches the dashpots on: the chain
+    // kernel of its chains' length, elastic and damped, and only those.
+    let text = "[scene]\nballs = 20\nradius = 0.005\n[scene.launch]\nballs = 1\n\
+                velocity = 0.1\n[scene.probes]\nbeads = [5, 15]\n\
+                [[axis]]\nparam = \"damping.viscosity\"\nvalues = [0.0, 0.5]\n";
+    let sweep = Sweep::parse(
+        &hertz_cradle::error::Source::new("chain_pipes.toml", text),
+        dir.path(),
+    )
+    .unwrap();
+    let needs = sweep.needs(&Overrides::default()).unwrap();
+    assert!(needs.chains && needs.plain && needs.terms);
+    g.prepare(&needs).unwrap();
+    let kernel = g.chain_kernel(20);
+    assert_eq!(
+        g.chain_pipelines(),
+        [false, true].map(|damped| (f64, ChainKernel { damped, ..kernel }))
+    );
+    let opts = Options::new(dir.path().join("chain_pipes.csv"));
+    run(&sweep, &opts, &g).unwrap();
+    assert_eq!(
+        g.chain_pipelines().len(),
+        2,
+        "a chain pipeline compiled during the sweep"
+    );
+    let rows = std::fs::read_to_string(&opts.out).unwrap();
+    assert_eq!(
+        rows.lines().filter(|l| l.contains(",ok,")).count(),
+        2,
+        "{rows}"
+    );
 }
 
 /// `CRADLE_GPU_PROFILE` text: a base profile, then key=value changes; a bad

@@ -105,7 +105,8 @@ pub struct Needs {
     /// the comparison models run on the CPU).
     pub hertz: bool,
     /// Whether some scene may be elastic on a free line (the plain pipeline)
-    /// and whether some may be a pendulum or dissipative (the general one).
+    /// and whether some may be a pendulum or dissipative (the general one);
+    /// for granular chains, elastic and damped (a kernel each).
     pub plain: bool,
     pub terms: bool,
     /// Fewest and most bodies a scene's chain may have.
@@ -176,6 +177,8 @@ pub struct DeviceStats {
     pub unpacking_s: f64,
     /// Thread-seconds packed batches waited for a turn on the device.
     pub waiting_s: f64,
+    /// Seconds spent building pipelines (the driver's shader compiles).
+    pub compiling_s: f64,
 }
 
 /// Run `jobs`; with `estimate`, also their coarse twins (every step twice as

@@ -89,13 +89,23 @@ impl Model for Granular {
         self.cols.types()
     }
 
-    /// The chain kernel alone.
-    fn needs(&self, base: &Scene, _varied: &Varied, solver: &Solver) -> Needs {
+    /// The chain kernel alone: `plain` where some chain may be elastic,
+    /// `terms` where some may be damped (its pipeline of its own).
+    fn needs(&self, base: &Scene, varied: &Varied, solver: &Solver) -> Needs {
+        let damped = base
+            .chain
+            .as_ref()
+            .is_some_and(|c| c.viscosity > 0.0 || c.air_drag > 0.0 || c.restitution() < 1.0);
+        let damping_varies = varied.any(&[
+            "damping.viscosity",
+            "damping.restitution",
+            "damping.air_drag",
+        ]);
         Needs {
             precision: solver.precision,
             hertz: solver.model == crate::engine::Model::Hertz,
-            plain: false,
-            terms: false,
+            plain: !damped || damping_varies,
+            terms: damped || damping_varies,
             bodies: (base.n, self.most_beads),
             chains: true,
         }

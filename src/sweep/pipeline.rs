@@ -86,6 +86,7 @@ impl Stages {
                 "packing": d.packing_s,
                 "unpacking": d.unpacking_s,
                 "waiting_for_device": d.waiting_s,
+                "compiling": d.compiling_s,
             });
         }
         j

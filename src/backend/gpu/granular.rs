@@ -76,6 +76,9 @@ pub(super) struct ChainPipe {
     kernel: ChainKernel,
 }
 
+/// One chain pipeline's place in [`Gpu`]'s map: empty until it is built.
+pub(super) type ChainSlot = Arc<std::sync::Mutex<Option<Arc<ChainPipe>>>>;
+
 /// The beads (a power of two, at least `LOCAL_MIN`) of the workgroup-memory
 /// pipeline a chain of `n` beads runs in with `wg` invocations, or 0 (the
 /// global path) when its velocities and forces (2·(n + 1) reals of 8 bytes,
@@ -482,6 +485,42 @@ impl Gpu {
         }
     }
 
+    /// The chain pipelines compiled so far, sorted.
+    pub fn chain_pipelines(&self) -> Vec<(Precision, ChainKernel)> {
+        let pipes = self.chain_pipes.lock().unwrap_or_else(|e| e.into_inner());
+        let mut keys: Vec<_> = pipes
+            .iter()
+            .filter(|(_, slot)| slot.lock().unwrap_or_else(|e| e.into_inner()).is_some())
+            .map(|(key, _)| *key)
+            .collect();
+        keys.sort_by_key(|(p, k)| (p.name(), k.local, k.wg, k.damped));
+        keys
+    }
+
+    /// Build the chain pipelines `keys` at once, a thread each (a driver
+    /// compiles a pipeline on the thread that asks for it: seconds each
+    /// for the chain kernel on an NVIDIA H200); the first error, if any.
+    pub(super) fn chain_pipes_ready(&self, keys: &[(Precision, ChainKernel)]) -> Result<()> {
+        let mut keys = keys.to_vec();
+        keys.sort_by_key(|(p, k)| (p.name(), k.local, k.wg, k.damped));
+        keys.dedup();
+        let Some((last, others)) = keys.split_last() else {
+            return Ok(());
+        };
+        std::thread::scope(|sc| {
+            let built: Vec<_> = others
+                .iter()
+                .map(|&(p, k)| sc.spawn(move || self.chain_pipe(p, k).map(|_| ())))
+                .collect();
+            let mine = self.chain_pipe(last.0, last.1).map(|_| ());
+            built
+                .into_iter()
+                .map(|h| h.join().unwrap_or_else(|e| std::panic::resume_unwind(e)))
+                .chain([mine])
+                .collect::<Result<()>>()
+        })
+    }
+
     /// The chain pipeline of `precision` (f64 or df64) and `kernel`,
     /// compiled on first use and kept.
     pub(super) fn chain_pipe(
@@ -492,8 +531,15 @@ impl Gpu {
         if precision == Precision::F32 {
             bail!("the granular-chain kernel runs f64 or df64, not f32 (refused at the front ends: granular::check_solver)");
         }
-        let mut pipes = self.chain_pipes.lock().unwrap_or_else(|e| e.into_inner());
-        if let Some(p) = pipes.get(&(precision, kernel)) {
+        let slot = self
+            .chain_pipes
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .entry((precision, kernel))
+            .or_default()
+            .clone();
+        let mut slot = slot.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(p) = &*slot {
             return Ok(p.clone());
         }
         if precision != Precision::Df64 && !self.f64_ok {
@@ -503,6 +549,7 @@ impl Gpu {
             );
         }
         let d = &self.device;
+        let began = Instant::now();
         use super::storage;
         let layout = d.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("chains"),
@@ -537,12 +584,13 @@ impl Gpu {
                 self.info.name
             );
         }
+        self.stats.compiled(began.elapsed().as_secs_f64());
         let p = Arc::new(ChainPipe {
             layout,
             pipe,
             kernel,
         });
-        pipes.insert((precision, kernel), p.clone());
+        *slot = Some(p.clone());
         Ok(p)
     }
 
@@ -550,6 +598,12 @@ impl Gpu {
     /// together, in parts as large as the device's workgroup count and
     /// storage binding allow.
     pub fn run_chain_jobs(&self, jobs: &[&ChainJob]) -> Result<Vec<ChainOutcome>> {
+        let keys: Vec<_> = jobs
+            .iter()
+            .map(|j| (j.plan.precision, self.job_kernel(j)))
+            .filter(|(p, _)| *p != Precision::F32)
+            .collect();
+        self.chain_pipes_ready(&keys)?;
         grouped(
             jobs,
             |j| j.plan.precision,
@@ -567,12 +621,17 @@ impl Gpu {
     fn run_chain_jobs_in<R: Real>(&self, jobs: &[&ChainJob]) -> Result<Vec<ChainOutcome>> {
         grouped(
             jobs,
-            |j| ChainKernel {
-                damped: j.beads.damped(),
-                ..self.chain_kernel(j.beads.n)
-            },
+            |j| self.job_kernel(j),
             |kernel, these| self.run_chain_jobs_with::<R>(these, kernel),
         )
+    }
+
+    /// The pipeline `job` runs in: its length's kernel, damped or not.
+    fn job_kernel(&self, job: &ChainJob) -> ChainKernel {
+        ChainKernel {
+            damped: job.beads.damped(),
+            ..self.chain_kernel(job.beads.n)
+        }
     }
 
     /// Jobs in precision `R` on the pipeline `kernel`, in parts as large as
@@ -617,9 +676,14 @@ impl Gpu {
         // The chains' device memory is held for the whole part: a turn on
         // the device from the upload to the read-back.
         let _turn = self.on_device.enter();
+        let began = Instant::now();
         let part = self.upload_chains::<R>(jobs)?;
+        let packed = began.elapsed().as_secs_f64();
         let heads = self.run_chains_to_end(pipe, jobs, &part)?;
-        self.read_chains::<R>(jobs, &part, &heads)
+        let ran = Instant::now();
+        let out = self.read_chains::<R>(jobs, &part, &heads);
+        self.stats.host(packed, ran.elapsed().as_secs_f64(), 0.0);
+        out
     }
 
     /// The part's chains packed into a device buffer. The reals go up in

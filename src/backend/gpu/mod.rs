@@ -109,9 +109,10 @@ pub struct Gpu {
     wg_bytes: u64,
     /// Most invocations in a workgroup.
     wg_invocations: u32,
-    /// The chain pipelines by precision (f64, df64) and beads in workgroup
-    /// memory (0: the global path), built on first use.
-    chain_pipes: Mutex<HashMap<(Precision, granular::ChainKernel), Arc<granular::ChainPipe>>>,
+    /// The chain pipelines by precision (f64, df64) and kernel, built on
+    /// first use: a slot each, so that different pipelines build at once
+    /// (the map is locked only to find a slot; a slot while it builds).
+    chain_pipes: Mutex<HashMap<(Precision, granular::ChainKernel), granular::ChainSlot>>,
     /// Batches on the device now: at most `profile.calls` (more calls than
     /// that are admitted, `host_ahead` of them planning, packing or unpacking).
     on_device: crate::backend::Gate,
@@ -330,8 +331,11 @@ impl Backend for Gpu {
     ) -> Result<Vec<crate::engine::granular::ChainOutcome>> {
         use crate::engine::granular::ChainOutcome;
         use rayon::prelude::*;
+        let began = std::time::Instant::now();
         let jobs: Vec<Option<super::ChainJob>> =
             (0..n).into_par_iter().map(job).collect::<Result<_, _>>()?;
+        // Building a pass's jobs is planning, as a batch's packing is.
+        self.stats.host(began.elapsed().as_secs_f64(), 0.0, 0.0);
         let on_device: Vec<&super::ChainJob> = jobs.iter().flatten().collect();
         let mut done = self.run_chain_jobs(&on_device)?.into_iter();
         Ok(jobs

@@ -295,6 +295,15 @@ impl Tracker {
         g.0.waiting_s += waiting;
     }
 
+    /// Seconds a pipeline took to build.
+    pub(super) fn compiled(&self, secs: f64) {
+        self.inner
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .0
+            .compiling_s += secs;
+    }
+
     pub(super) fn get(&self) -> DeviceStats {
         self.inner.lock().unwrap_or_else(|e| e.into_inner()).0
     }

@@ -70,12 +70,16 @@ impl Gpu {
     /// the precision and class, before any scene runs.
     pub fn prepare(&self, needs: &Needs) -> Result<()> {
         if needs.chains {
-            // The global path; the workgroup-memory ones on first use.
-            let kernel = super::ChainKernel {
-                local: 0,
-                ..self.chain_kernel(0)
-            };
-            return self.chain_pipe(needs.precision, kernel).map(|_| ());
+            // The kernel of the longest chains (a uniform sweep's only
+            // one), elastic and damped as the sweep may need; any other
+            // on first use.
+            let kernel = self.chain_kernel(needs.bodies.1);
+            let keys: Vec<_> = [(needs.plain, false), (needs.terms, true)]
+                .into_iter()
+                .filter(|(want, _)| *want)
+                .map(|(_, damped)| (needs.precision, super::ChainKernel { damped, ..kernel }))
+                .collect();
+            return self.chain_pipes_ready(&keys);
         }
         if !needs.hertz {
             return Ok(());
@@ -122,6 +126,7 @@ impl Gpu {
             return Ok(pipe.clone());
         }
         let device = &self.device;
+        let began = std::time::Instant::now();
         // Catch shader or pipeline errors as values instead of a panic.
         let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
@@ -151,6 +156,7 @@ impl Gpu {
                 self.info.name
             );
         }
+        self.stats.compiled(began.elapsed().as_secs_f64());
         let pipe = Arc::new(pipe);
         pipes.insert(key, pipe.clone());
         Ok(pipe)
