@@ -49,6 +49,8 @@
 # lets run past it less a minute kept for the table, so the table and the
 # logs come back whatever a run takes.
 # Every GPU run logs each batch's rounds (CRADLE_GPU_LOG=1) into its .log.
+# CRADLE (default ./cradle, the binary device_prep.sh built): another
+# binary, e.g. a baseline's, measured in the same call.
 set -uo pipefail
 here=$(cd "$(dirname "$0")" && pwd)
 root=$(cd "$here/.." && pwd)
@@ -61,6 +63,7 @@ icd=/usr/local/nvidia/share/vulkan/icd.d/nvidia_icd.json
 [ -f "$icd" ] && export VK_DRIVER_FILES=$icd
 CAP=${CAP:-120}; GRID_CAP=${GRID_CAP:-45}; STRESS_CAP=${STRESS_CAP:-60}; SHAPE_CAP=${SHAPE_CAP:-25}
 SKIP=${SKIP:-}; export CRADLE_GPU_LOG=1
+CRADLE=${CRADLE:-./cradle}
 DEADLINE=${DEADLINE:-450}; t0=$(date +%s)
 # capped CAP: CAP, or less so as to end a minute before the deadline (0: no time left).
 capped() {
@@ -80,7 +83,7 @@ log "cores: $(nproc); $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2)"
 log "commit: $(cat "$here/COMMIT" 2>/dev/null || (cd "$root" && git rev-parse --short HEAD 2>/dev/null) || echo unknown)"
 
 # The adapter first: a tiny sweep on --backend gpu, its sidecar's adapter.
-timeout -k 5 60 ./cradle sweep grid100.toml --out "$w/probe.csv" --backend gpu >"$w/probe.log" 2>&1
+timeout -k 5 60 "$CRADLE" sweep grid100.toml --out "$w/probe.csv" --backend gpu >"$w/probe.log" 2>&1
 adapter=$(python3 -c "import json; print(json.load(open('$w/probe.csv.json')).get('adapter', ''))" 2>/dev/null)
 log "adapter: ${adapter:-none}"
 case "${ALLOW_SOFTWARE:-0}:$adapter" in
@@ -150,9 +153,9 @@ run() {
   fi
   s=$(date +%s.%N)
   if [ -n "$prof" ]; then
-    CRADLE_GPU_PROFILE=$prof timeout -k 5 "$cap" ./cradle "$@" >"$w/$name.log" 2>&1; rc=$?
+    CRADLE_GPU_PROFILE=$prof timeout -k 5 "$cap" "$CRADLE" "$@" >"$w/$name.log" 2>&1; rc=$?
   else
-    timeout -k 5 "$cap" ./cradle "$@" >"$w/$name.log" 2>&1; rc=$?
+    timeout -k 5 "$cap" "$CRADLE" "$@" >"$w/$name.log" 2>&1; rc=$?
   fi
   e=$(python3 -c "print(f'{$(date +%s.%N)-$s:.2f}')")
   case $rc in
