@@ -2,13 +2,16 @@
 //! pistons, drives"): a 1,000-bead steel chain struck at one end, at a fixed
 //! step, undamped and with each kind of damping, the window the whole chain
 //! (`run_with(.., whole = true)`: every bead stepped, so the time per
-//! bead-step compares the step's own work) and as a run windows it (the
-//! beads near the wave: what a user waits for). Best of 3 runs, one thread.
+//! bead-step compares the step's own work, beads at rest ahead of the wave
+//! included) and as a run windows it (the beads near the wave: what a user
+//! waits for), with the mean window and the time per bead the run stepped
+//! (the plan's `Tally`: damping costs more near the wave, where contacts
+//! are closed, than ahead of it). Best of 3 runs, one thread.
 //!
 //! `cargo run --release --example damping_cost`
 
 use hertz_cradle::engine::granular::{self, run::run_with, Beads, NoRows};
-use hertz_cradle::engine::{Overrides, Solver};
+use hertz_cradle::engine::{Overrides, Solver, Tally};
 use hertz_cradle::scene::Scene;
 use std::time::Instant;
 
@@ -24,8 +27,8 @@ fn main() {
             }
         )
     };
-    println!("| chain | damping | ns per bead-step (whole chain) | × undamped | run, windowed (s) | × undamped |");
-    println!("|---|---|---|---|---|---|");
+    println!("| chain | damping | ns per bead-step (whole chain) | × undamped | run, windowed (s) | × undamped | mean window (beads) | ns per bead-step (window) | × undamped |");
+    println!("|---|---|---|---|---|---|---|---|---|");
     for pre in [false, true] {
         let mut first = None;
         for (name, extra) in [
@@ -36,33 +39,40 @@ fn main() {
         ] {
             let s = Scene::from_toml_str("cost", &base(extra, pre)).unwrap();
             let b = Beads::from_scene(&s);
-            let plan = granular::plan(
+            let mut plan = granular::plan(
                 &b,
                 &Solver::resolve(&s, &Overrides::default()).unwrap(),
                 None,
             );
-            let best = |whole: bool| {
+            let best = |plan: &granular::Plan, whole: bool| {
                 (0..3)
                     .map(|_| {
                         let t = Instant::now();
-                        let o = run_with(&b, &plan, &mut NoRows, whole);
+                        let o = run_with(&b, plan, &mut NoRows, whole);
                         (t.elapsed().as_secs_f64(), o.steps)
                     })
                     .fold((f64::INFINITY, 0), |a, x| if x.0 < a.0 { x } else { a })
             };
-            let (tw, steps) = best(true);
-            let (tr, _) = best(false);
+            let (tw, steps) = best(&plan, true);
+            // The windowed runs' bead-steps, as the run counts them.
+            let tally = Tally::new();
+            plan.tally = tally.clone();
+            let (tr, _) = best(&plan, false);
+            let stepped = tally.get().unwrap_or(0) as f64 / 3.0;
             let ns = tw / (steps as f64 * b.n as f64) * 1e9;
-            let (ns0, tr0) = *first.get_or_insert((ns, tr));
+            let nw = tr / stepped * 1e9;
+            let (ns0, tr0, nw0) = *first.get_or_insert((ns, tr, nw));
             println!(
-                "| {} | {name} | {ns:.2} | {:.2} | {tr:.3} | {:.1} |",
+                "| {} | {name} | {ns:.2} | {:.2} | {tr:.3} | {:.1} | {:.0} | {nw:.2} | {:.2} |",
                 if pre {
                     "precompressed 10 N"
                 } else {
                     "uncompressed"
                 },
                 ns / ns0,
-                tr / tr0
+                tr / tr0,
+                stepped / steps as f64,
+                nw / nw0
             );
         }
     }

@@ -86,8 +86,9 @@ fn run_in<R: Real>(b: &Beads, plan: &Plan, rows: &mut dyn Rows, whole: bool) -> 
     // At rest every contact counts (the window then holds the moving ones).
     let mut max_ratio = overlap_ratio(&c, &st, 0, b.n);
     let (max_time, pulse_end) = (R::of(plan.max_time), c.pulse.map(|p| p.duration));
-    // Bead-steps told to the plan's tally so far (in chunks of ~2^16).
-    let mut told = 0u64;
+    // Bead-steps taken (the beads each step stepped: its window's) and
+    // told to the plan's tally so far (in chunks of ~2^16).
+    let (mut done, mut told) = (0u64, 0u64);
     loop {
         if let Some(end) = end_at {
             if t >= end {
@@ -103,6 +104,7 @@ fn run_in<R: Real>(b: &Beads, plan: &Plan, rows: &mut dyn Rows, whole: bool) -> 
             break;
         }
         let t1 = step_end(&c, plan, st.steps + 1);
+        done += (st.hi - st.lo) as u64;
         step(&c, &mut st, t, t1 - t, &m, whole);
         t = t1;
         obs.see(b, &c, &st, t);
@@ -128,7 +130,6 @@ fn run_in<R: Real>(b: &Beads, plan: &Plan, rows: &mut dyn Rows, whole: bool) -> 
                 status = Status::TimeCap;
                 break;
             }
-            let done = st.steps * b.n as u64;
             if done - told >= TALLY_CHUNK {
                 plan.tally.add(done - told);
                 told = done;
@@ -139,7 +140,7 @@ fn run_in<R: Real>(b: &Beads, plan: &Plan, rows: &mut dyn Rows, whole: bool) -> 
         rows.row(t.to64(), b, &st.in_f64());
     }
     max_ratio = max_ratio.max(overlap_ratio(&c, &st, st.lo, st.hi));
-    plan.tally.add(st.steps * b.n as u64 - told);
+    plan.tally.add(done - told);
     finish(b, plan, &st, obs, t, status, e_ref, max_ratio)
 }
 
