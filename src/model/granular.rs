@@ -92,10 +92,7 @@ impl Model for Granular {
     /// The chain kernel alone: `plain` where some chain may be elastic,
     /// `terms` where some may be damped (its pipeline of its own).
     fn needs(&self, base: &Scene, varied: &Varied, solver: &Solver) -> Needs {
-        let damped = base
-            .chain
-            .as_ref()
-            .is_some_and(|c| c.viscosity > 0.0 || c.air_drag > 0.0 || c.restitution() < 1.0);
+        let damped = base.chain.as_ref().is_some_and(|c| c.damped());
         let damping_varies = varied.any(&[
             "damping.viscosity",
             "damping.restitution",

@@ -255,6 +255,18 @@ impl ChainSetup {
             self.restitution
         }
     }
+
+    /// Whether the chain dissipates ([`dissipates`]).
+    pub fn damped(&self) -> bool {
+        dissipates(self.viscosity, self.air_drag, self.restitution())
+    }
+}
+
+/// Whether a chain with dashpots `viscosity`, air drag `air_drag` and
+/// contacts of restitution `restitution` dissipates (issue #45): the one
+/// rule for a scene's setup and its engine's beads.
+pub fn dissipates(viscosity: f64, air_drag: f64, restitution: f64) -> bool {
+    viscosity > 0.0 || air_drag > 0.0 || restitution < 1.0
 }
 
 /// A checked scene in SI units, one value per ball (gaps and glue: per contact).

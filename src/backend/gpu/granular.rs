@@ -493,7 +493,7 @@ impl Gpu {
             .filter(|(_, slot)| slot.lock().unwrap_or_else(|e| e.into_inner()).is_some())
             .map(|(key, _)| *key)
             .collect();
-        keys.sort_by_key(|(p, k)| (p.name(), k.local, k.wg, k.damped));
+        keys.sort_unstable();
         keys
     }
 
@@ -502,7 +502,7 @@ impl Gpu {
     /// for the chain kernel on an NVIDIA H200); the first error, if any.
     pub(super) fn chain_pipes_ready(&self, keys: &[(Precision, ChainKernel)]) -> Result<()> {
         let mut keys = keys.to_vec();
-        keys.sort_by_key(|(p, k)| (p.name(), k.local, k.wg, k.damped));
+        keys.sort_unstable();
         keys.dedup();
         let Some((last, others)) = keys.split_last() else {
             return Ok(());
@@ -598,10 +598,10 @@ impl Gpu {
     /// together, in parts as large as the device's workgroup count and
     /// storage binding allow.
     pub fn run_chain_jobs(&self, jobs: &[&ChainJob]) -> Result<Vec<ChainOutcome>> {
+        // Every pipeline the jobs need, built at once (f32 is refused there).
         let keys: Vec<_> = jobs
             .iter()
             .map(|j| (j.plan.precision, self.job_kernel(j)))
-            .filter(|(p, _)| *p != Precision::F32)
             .collect();
         self.chain_pipes_ready(&keys)?;
         grouped(

@@ -335,7 +335,7 @@ impl Beads {
     /// Whether the chain dissipates (a dashpot, Hunt–Crossley contacts or
     /// air drag, issue #45).
     pub fn damped(&self) -> bool {
-        self.viscosity > 0.0 || self.air_drag > 0.0 || self.restitution < 1.0
+        crate::scene::dissipates(self.viscosity, self.air_drag, self.restitution)
     }
 
     /// Whether the local refinement may run on this chain ([`Plan::refine`]):
