@@ -26,6 +26,8 @@ pub mod control;
 pub mod history;
 pub mod observe;
 pub mod run;
+#[cfg(target_arch = "x86_64")]
+mod simd;
 pub mod step;
 
 use super::contact::{contact_time, hertz_energy, hertz_stiffness};

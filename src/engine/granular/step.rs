@@ -722,7 +722,11 @@ fn damp<R: Real>(c: &Consts<R>, d: &super::DampConsts<R>, s: &mut State<R>, tau:
     }
 }
 
-/// The dashpots of contacts `first`, `first` + 2, … in the window for `t`.
+/// The dashpots of contacts `first`, `first` + 2, … in the window for `t`,
+/// one by one ([`dashpot`]); in f64 on a CPU with AVX2 the contacts between
+/// beads four at a time ([`super::simd`], the same bits) and only the walls'
+/// and the last few one by one. Contacts of one parity share no bead, so
+/// the order changes no bit.
 #[inline(always)]
 fn sweep<R: Real, const BACK: bool>(
     c: &Consts<R>,
@@ -732,6 +736,50 @@ fn sweep<R: Real, const BACK: bool>(
     t: R,
 ) {
     let mut j = first;
+    #[cfg(target_arch = "x86_64")]
+    if std::any::TypeId::of::<R>() == std::any::TypeId::of::<f64>()
+        && std::is_x86_feature_detected!("avx2")
+    {
+        let (n, hi) = (s.v.len(), s.hi);
+        if j == 0 && j <= hi {
+            dashpot::<R, BACK>(c, d, s, 0, t);
+            j = 2;
+        }
+        // Contacts j, j + 2, … up to the last one between two beads.
+        let top = hi.min(n - 1);
+        let chunks = if j <= top { ((top - j) / 2 + 1) / 4 } else { 0 };
+        if chunks > 0 {
+            use super::simd::{as64 as f, as64_mut as g};
+            let sw = super::simd::Sweep {
+                d0: f(&c.d0),
+                k: f(&c.k),
+                p: f(&s.p),
+                beta: f(&d.beta),
+                inv_mu: f(&d.inv_mu),
+                mu: f(&d.mu),
+                share_a: f(&d.share_a),
+                share_b: f(&d.share_b),
+                t: t.to64(),
+                hc: d.hc.to64(),
+                chi_floor: d.chi_floor.to64(),
+            };
+            let (v, lost, dimp, chi) = (
+                g(&mut s.v),
+                g(&mut s.lost_c),
+                g(&mut s.scratch.dimp),
+                g(&mut s.chi),
+            );
+            // SAFETY: the CPU has AVX2 (checked just above).
+            unsafe {
+                if d.hc != R::zero() {
+                    super::simd::dashpots::<BACK, true>(&sw, v, lost, dimp, chi, j, chunks);
+                } else {
+                    super::simd::dashpots::<BACK, false>(&sw, v, lost, dimp, chi, j, chunks);
+                }
+            }
+            j += 8 * chunks;
+        }
+    }
     while j <= s.hi {
         dashpot::<R, BACK>(c, d, s, j, t);
         j += 2;
@@ -739,8 +787,9 @@ fn sweep<R: Real, const BACK: bool>(
 }
 
 /// A sweep of dashpots back in time (`t` < 0: the negative substeps of
-/// some methods), out of line so that the forward sweeps' code stays small.
-#[inline(never)]
+/// some methods), its pull test the general one. Inlined, so that it is
+/// compiled for the step's vector width too ([`step`]).
+#[inline(always)]
 fn dashpots_back<R: Real>(
     c: &Consts<R>,
     d: &super::DampConsts<R>,
@@ -762,8 +811,10 @@ fn closing_correction<R: Real>(
 ) -> Option<R> {
     let zero = R::zero();
     let (a, b) = (c.d0[j] + s.scratch.p[j], c.d0[j] + s.p[j]);
-    // Closed at the end as the dashpot sees it: its spring pushes.
-    (d.gamma != zero && a <= zero && hertz(c.k[j], b) > zero)
+    // Closed at the end as the dashpot sees it: its spring pushes (δ > 0
+    // tested first, so that the many contacts open at both ends take no
+    // square root; the same answer, hertz(k, δ ≤ 0) = 0).
+    (d.gamma != zero && a <= zero && b > zero && hertz(c.k[j], b) > zero)
         .then(|| -(d.gamma * b) - s.scratch.dimp[j])
 }
 
@@ -1268,5 +1319,119 @@ mod tests {
         assert!(!is_near(0.0, k, 1e-6, 1e-6 - 1e-9, near, floor));
         // A contact with no stiffness (glue's absent spring) never is.
         assert!(!is_near(0.0, 0.0, -1e-9, 1e-9, near, floor));
+    }
+
+    /// A sweep of dashpots (in f64 on an AVX2 CPU, four contacts to a
+    /// vector: `simd::dashpots`) gives the same bits as the contacts one by
+    /// one ([`dashpot`]), on random states of a dimer chain between walls
+    /// that take every branch: open contacts, overlaps of 1e-250 (a spring
+    /// that underflows) to 1e-5, beads at equal speeds (−0 too), pulls cut
+    /// at the spring's push, Hunt–Crossley χ new, kept and lowered, NaN; both
+    /// parities, forward and back in time.
+    #[test]
+    fn a_sweep_is_its_dashpots_one_by_one() {
+        use super::{dashpot, sweep, State};
+        use crate::engine::granular::{Beads, Consts};
+        use crate::scene::Scene;
+        let scene = |damping: &str| {
+            let src = format!(
+                "balls = 43\nradius = 0.005\n[pattern]\nradius = [0.005, 0.0035, 0.004]\n\
+                 [walls]\nleft = true\nright = true\n[launch]\nballs = 1\nvelocity = 0.1\n\
+                 [damping]\n{damping}"
+            );
+            Beads::from_scene(&Scene::from_toml_str("sweep", &src).unwrap())
+        };
+        // xorshift64*: a fixed sequence, no dependency.
+        let mut x = 0x9e37_79b9_7f4a_7c15_u64;
+        let mut next = move || {
+            x ^= x >> 12;
+            x ^= x << 25;
+            x ^= x >> 27;
+            (x.wrapping_mul(0x2545_f491_4f6c_dd1d) >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let same = |a: &[f64], b: &[f64]| {
+            a.len() == b.len()
+                && a.iter()
+                    .zip(b)
+                    .all(|(x, y)| x.to_bits() == y.to_bits() || (x.is_nan() && y.is_nan()))
+        };
+        let mut cut = 0;
+        for damping in ["viscosity = 40.0\n", "viscosity = 2.0\nrestitution = 0.7\n"] {
+            let b = scene(damping);
+            let c = Consts::<f64>::of(&b);
+            let d = c.damp.as_ref().unwrap();
+            for round in 0..400 {
+                let mut s = State::start(&b, &c, &[1.0], true, false);
+                let n = b.n;
+                for j in 0..=n {
+                    let r = next();
+                    let dl = match (r * 10.0) as u32 {
+                        0 => -1e-6 * next(),
+                        1 => 0.0,
+                        2 => 1e-250 * next(),
+                        3 => 1e-205 * (1.0 + next()),
+                        4 => 1e-17 * next(),
+                        5 | 6 => 1e-10 * (1.0 + 1e3 * next()),
+                        _ => 1e-5 * next(),
+                    };
+                    s.p[j] = dl - c.d0[j];
+                    s.lost_c[j] = next() * 1e-6;
+                    s.scratch.dimp[j] = (next() - 0.5) * 1e-6;
+                    if !s.chi.is_empty() {
+                        s.chi[j] = [0.0, 0.5 * next(), 50.0 * next()][(next() * 3.0) as usize];
+                    }
+                }
+                for i in 0..n {
+                    s.v[i] = match (next() * 12.0) as u32 {
+                        0 if i > 0 => s.v[i - 1],
+                        1 => -0.0,
+                        _ => 0.2 * (next() - 0.5),
+                    };
+                }
+                if round == 7 {
+                    s.v[20] = f64::NAN;
+                }
+                let t = [2e-7, 1e-6, -3e-7][round % 3];
+                let first = (round / 3) % 2;
+                let (pre, mut one) = (s.clone(), s.clone());
+                if t > 0.0 {
+                    sweep::<f64, false>(&c, d, &mut s, first, t);
+                } else {
+                    sweep::<f64, true>(&c, d, &mut s, first, t);
+                }
+                for j in (first..=n).step_by(2) {
+                    if t > 0.0 {
+                        dashpot::<f64, false>(&c, d, &mut one, j, t);
+                    } else {
+                        dashpot::<f64, true>(&c, d, &mut one, j, t);
+                    }
+                }
+                assert!(same(&s.v, &one.v), "velocities, round {round}");
+                assert!(same(&s.lost_c, &one.lost_c), "energy, round {round}");
+                assert!(
+                    same(&s.scratch.dimp, &one.scratch.dimp),
+                    "impulse, round {round}"
+                );
+                assert!(same(&s.chi, &one.chi), "chi, round {round}");
+                // Pulls cut at the spring's push happened (the rule's branch
+                // was taken), counted on the dashpots alone.
+                if d.hc == 0.0 {
+                    cut += (first..=n)
+                        .step_by(2)
+                        .filter(|&j| {
+                            let v = &pre.v;
+                            let va = if j > 0 { v[j - 1] } else { 0.0 };
+                            let w = va - if j < n { v[j] } else { 0.0 };
+                            let dl = c.d0[j] + pre.p[j];
+                            let x = d.beta[j] * t;
+                            let wn = w * (2.0 - x) / (2.0 + x);
+                            let lim = w + super::hertz(c.k[j], dl) * t * d.inv_mu[j];
+                            dl > 0.0 && w < 0.0 && t > 0.0 && wn > lim
+                        })
+                        .count();
+                }
+            }
+        }
+        assert!(cut > 0);
     }
 }

@@ -1,0 +1,192 @@
+//! The dashpots' sweep in f64 with AVX2 (x86-64): `step::dashpot` for
+//! four contacts of one parity at once, in vectors. The damped chain's step
+//! spent most of its time there, one contact at a time, its division and
+//! the spring's square root in series with branches the data decides
+//! (closing or parting); here every chunk with a closed contact takes the
+//! whole computation with selects in place of branches, and the divider
+//! stays busy.
+//!
+//! The same operations on each value as `dashpot` (no multiply-add is
+//! fused, square roots and divisions are IEEE's, comparisons keep NaN's
+//! meaning, `max` returns its second operand for a NaN as `f64::max` does
+//! its first), so the same bits: `step`'s test compares the two on random
+//! states, and the pins and the CPU = GPU tests hold them. A chunk reads
+//! each contact array eight contacts at a time (contacts j .. j + 8) and
+//! takes the even ones with an unpack — lanes in the order j, j + 4, j + 2,
+//! j + 6, which is also the order the beads' pairs unpack in — and writes
+//! the odd ones back unchanged.
+
+use std::arch::x86_64::*;
+
+/// An f64 array as f64 (`R` is f64: the caller checks).
+pub(super) fn as64<R: bytemuck::Pod>(x: &[R]) -> &[f64] {
+    bytemuck::cast_slice(x)
+}
+
+pub(super) fn as64_mut<R: bytemuck::Pod>(x: &mut [R]) -> &mut [f64] {
+    bytemuck::cast_slice_mut(x)
+}
+
+/// A sweep's contact arrays (contacts 0 ..= n) and its parameters.
+pub(super) struct Sweep<'a> {
+    pub d0: &'a [f64],
+    pub k: &'a [f64],
+    pub p: &'a [f64],
+    pub beta: &'a [f64],
+    pub inv_mu: &'a [f64],
+    pub mu: &'a [f64],
+    pub share_a: &'a [f64],
+    pub share_b: &'a [f64],
+    /// The substep's length (< 0: back in time).
+    pub t: f64,
+    /// Hunt–Crossley's a(e) (0: none) and the floor of the closing speed.
+    pub hc: f64,
+    pub chi_floor: f64,
+}
+
+/// Contacts j0, j0 + 2, … (`chunks` × 4 of them, all between two beads):
+/// their dashpots for `sw.t`, on the beads' velocities `v`, each contact's
+/// energy taken `lost`, impulse `dimp` and χ `chi` (Hunt–Crossley only).
+///
+/// # Safety
+/// The CPU has AVX2.
+#[target_feature(enable = "avx2")]
+pub(super) unsafe fn dashpots<const BACK: bool, const HC: bool>(
+    sw: &Sweep,
+    v: &mut [f64],
+    lost: &mut [f64],
+    dimp: &mut [f64],
+    chi: &mut [f64],
+    j0: usize,
+    chunks: usize,
+) {
+    let end = j0 + 8 * chunks;
+    // Every load and store below is inside these.
+    assert!(j0 >= 1 && end - 1 <= v.len());
+    for x in [
+        sw.d0, sw.k, sw.p, sw.beta, sw.inv_mu, sw.mu, sw.share_a, sw.share_b,
+    ] {
+        assert!(end <= x.len());
+    }
+    assert!(end <= lost.len() && end <= dimp.len() && (!HC || end <= chi.len()));
+    let zero = _mm256_setzero_pd();
+    let one = _mm256_set1_pd(1.0);
+    let two = _mm256_set1_pd(2.0);
+    let half = _mm256_set1_pd(0.5);
+    let eps = _mm256_set1_pd(f64::EPSILON);
+    let t = _mm256_set1_pd(sw.t);
+    let hc = _mm256_set1_pd(sw.hc);
+    let floor = _mm256_set1_pd(sw.chi_floor);
+    let margin = _mm256_set1_pd(1.0 + 64.0 * f64::EPSILON);
+    let sign = _mm256_set1_pd(-0.0);
+    let abs = |x: __m256d| _mm256_andnot_pd(sign, x);
+    // k·δ·√δ with δ = max(δ, 0) ([`super::hertz`]).
+    let hertz = |k: __m256d, d: __m256d| {
+        let d = _mm256_max_pd(d, zero);
+        _mm256_mul_pd(_mm256_mul_pd(k, d), _mm256_sqrt_pd(d))
+    };
+    for q in 0..chunks {
+        let j = j0 + 8 * q;
+        // Contacts j, j + 4, j + 2, j + 6 of array x, and the other four.
+        let pair = |x: &[f64]| {
+            let (lo, hi) = (
+                _mm256_loadu_pd(x.as_ptr().add(j)),
+                _mm256_loadu_pd(x.as_ptr().add(j + 4)),
+            );
+            (_mm256_unpacklo_pd(lo, hi), _mm256_unpackhi_pd(lo, hi))
+        };
+        let even = |x: &[f64]| pair(x).0;
+        let put = |x: &mut [f64], e: __m256d, o: __m256d| {
+            _mm256_storeu_pd(x.as_mut_ptr().add(j), _mm256_unpacklo_pd(e, o));
+            _mm256_storeu_pd(x.as_mut_ptr().add(j + 4), _mm256_unpackhi_pd(e, o));
+        };
+        let dl = _mm256_add_pd(even(sw.d0), even(sw.p));
+        // Beads j − 1 .. j + 7: contact j + i's beads a and b.
+        let (va, vb) = {
+            let (lo, hi) = (
+                _mm256_loadu_pd(v.as_ptr().add(j - 1)),
+                _mm256_loadu_pd(v.as_ptr().add(j + 3)),
+            );
+            (_mm256_unpacklo_pd(lo, hi), _mm256_unpackhi_pd(lo, hi))
+        };
+        let w = _mm256_sub_pd(va, vb);
+        let act = _mm256_and_pd(
+            _mm256_cmp_pd::<_CMP_GT_OQ>(dl, zero),
+            _mm256_cmp_pd::<_CMP_NEQ_UQ>(w, zero),
+        );
+        if _mm256_movemask_pd(act) == 0 {
+            continue;
+        }
+        let k = even(sw.k);
+        // The spring at these overlaps: a tiny overlap's may not push (then
+        // its dashpot is off), Hunt–Crossley's χ multiplies it, and a
+        // parting contact's pull is limited by it. Computed for every
+        // chunk with a closed contact: a test that could skip the square
+        // root costs more in mispredicted branches than it saves.
+        let spring = hertz(k, dl);
+        let sure = _mm256_and_pd(
+            _mm256_cmp_pd::<_CMP_GE_OQ>(dl, eps),
+            _mm256_cmp_pd::<_CMP_GE_OQ>(k, one),
+        );
+        let slack = _mm256_andnot_pd(sure, _mm256_cmp_pd::<_CMP_LE_OQ>(spring, zero));
+        let act = _mm256_andnot_pd(slack, act);
+        let inv_mu = even(sw.inv_mu);
+        let mut beta = even(sw.beta);
+        if HC {
+            let (ce, co) = pair(chi);
+            let speed = _mm256_max_pd(abs(w), floor);
+            let zc = _mm256_cmp_pd::<_CMP_EQ_OQ>(ce, zero);
+            let closing = _mm256_cmp_pd::<_CMP_GT_OQ>(w, zero);
+            let below =
+                _mm256_cmp_pd::<_CMP_LT_OQ>(hc, _mm256_mul_pd(_mm256_mul_pd(ce, speed), margin));
+            let renew = _mm256_and_pd(act, _mm256_or_pd(zc, _mm256_and_pd(closing, below)));
+            let x = _mm256_div_pd(hc, speed);
+            let lower = _mm256_and_pd(closing, _mm256_cmp_pd::<_CMP_LT_OQ>(x, ce));
+            let set = _mm256_and_pd(renew, _mm256_or_pd(zc, lower));
+            let ce = _mm256_blendv_pd(ce, x, set);
+            put(chi, ce, co);
+            beta = _mm256_add_pd(beta, _mm256_mul_pd(_mm256_mul_pd(ce, spring), inv_mu));
+        }
+        let x = _mm256_mul_pd(beta, t);
+        let wn = _mm256_div_pd(
+            _mm256_mul_pd(w, _mm256_sub_pd(two, x)),
+            _mm256_add_pd(two, x),
+        );
+        // Pulling (forward: parting beads only): at most the spring's push.
+        let parting = if BACK {
+            act
+        } else {
+            _mm256_and_pd(act, _mm256_cmp_pd::<_CMP_LT_OQ>(w, zero))
+        };
+        let cut = _mm256_and_pd(
+            parting,
+            _mm256_cmp_pd::<_CMP_GT_OQ>(_mm256_mul_pd(_mm256_sub_pd(wn, w), t), zero),
+        );
+        let lim = _mm256_add_pd(w, _mm256_mul_pd(_mm256_mul_pd(spring, t), inv_mu));
+        let over = _mm256_cmp_pd::<_CMP_GT_OQ>(_mm256_mul_pd(_mm256_sub_pd(wn, lim), t), zero);
+        let wn = _mm256_blendv_pd(wn, lim, _mm256_and_pd(cut, over));
+        let dw = _mm256_sub_pd(wn, w);
+        let nva = _mm256_blendv_pd(
+            va,
+            _mm256_add_pd(va, _mm256_mul_pd(dw, even(sw.share_a))),
+            act,
+        );
+        let nvb = _mm256_blendv_pd(
+            vb,
+            _mm256_sub_pd(vb, _mm256_mul_pd(dw, even(sw.share_b))),
+            act,
+        );
+        _mm256_storeu_pd(v.as_mut_ptr().add(j - 1), _mm256_unpacklo_pd(nva, nvb));
+        _mm256_storeu_pd(v.as_mut_ptr().add(j + 3), _mm256_unpackhi_pd(nva, nvb));
+        let mu = even(sw.mu);
+        let (le, lo) = pair(lost);
+        let took = _mm256_mul_pd(
+            _mm256_mul_pd(half, mu),
+            _mm256_sub_pd(_mm256_mul_pd(w, w), _mm256_mul_pd(wn, wn)),
+        );
+        put(lost, _mm256_blendv_pd(le, _mm256_add_pd(le, took), act), lo);
+        let (ie, io) = pair(dimp);
+        let imp = _mm256_add_pd(ie, _mm256_mul_pd(mu, dw));
+        put(dimp, _mm256_blendv_pd(ie, imp, act), io);
+    }
+}
