@@ -16,6 +16,7 @@
 //! j + 6, which is also the order the beads' pairs unpack in — and writes
 //! the odd ones back unchanged.
 
+use super::step::Springs;
 use std::arch::x86_64::*;
 
 /// An f64 array as f64 (`R` is f64: the caller checks).
@@ -44,22 +45,38 @@ pub(super) struct Sweep<'a> {
     pub chi_floor: f64,
 }
 
+/// What a sweep changes: the beads' velocities, each contact's energy
+/// taken, impulse and χ (Hunt–Crossley only), and the springs it keeps.
+pub(super) struct Out<'a> {
+    pub v: &'a mut [f64],
+    pub lost: &'a mut [f64],
+    pub dimp: &'a mut [f64],
+    pub chi: &'a mut [f64],
+    pub spring: &'a mut [f64],
+}
+
 /// Contacts j0, j0 + 2, … (`chunks` × 4 of them, all between two beads):
-/// their dashpots for `sw.t`, on the beads' velocities `v`, each contact's
-/// energy taken `lost`, impulse `dimp` and χ `chi` (Hunt–Crossley only).
+/// their dashpots for `sw.t`; their springs computed, kept or reused as
+/// `springs` says (the same values: a spring is a function of k and the
+/// frozen overlap alone).
 ///
 /// # Safety
 /// The CPU has AVX2.
 #[target_feature(enable = "avx2")]
 pub(super) unsafe fn dashpots<const BACK: bool, const HC: bool>(
     sw: &Sweep,
-    v: &mut [f64],
-    lost: &mut [f64],
-    dimp: &mut [f64],
-    chi: &mut [f64],
+    out: Out,
+    springs: Springs,
     j0: usize,
     chunks: usize,
 ) {
+    let Out {
+        v,
+        lost,
+        dimp,
+        chi,
+        spring: kept,
+    } = out;
     let end = j0 + 8 * chunks;
     // Every load and store below is inside these.
     assert!(j0 >= 1 && end - 1 <= v.len());
@@ -69,6 +86,7 @@ pub(super) unsafe fn dashpots<const BACK: bool, const HC: bool>(
         assert!(end <= x.len());
     }
     assert!(end <= lost.len() && end <= dimp.len() && (!HC || end <= chi.len()));
+    assert!(springs == Springs::Take || end <= kept.len());
     let zero = _mm256_setzero_pd();
     let one = _mm256_set1_pd(1.0);
     let two = _mm256_set1_pd(2.0);
@@ -110,11 +128,14 @@ pub(super) unsafe fn dashpots<const BACK: bool, const HC: bool>(
             (_mm256_unpacklo_pd(lo, hi), _mm256_unpackhi_pd(lo, hi))
         };
         let w = _mm256_sub_pd(va, vb);
-        let act = _mm256_and_pd(
-            _mm256_cmp_pd::<_CMP_GT_OQ>(dl, zero),
-            _mm256_cmp_pd::<_CMP_NEQ_UQ>(w, zero),
-        );
-        if _mm256_movemask_pd(act) == 0 {
+        let closed = _mm256_cmp_pd::<_CMP_GT_OQ>(dl, zero);
+        let act = _mm256_and_pd(closed, _mm256_cmp_pd::<_CMP_NEQ_UQ>(w, zero));
+        // A sweep that keeps its springs keeps those of every chunk with a
+        // closed contact: the sweep that reuses them may find beads moving
+        // that stood still here (an open contact stays open, its overlap
+        // frozen).
+        let keep = springs == Springs::Keep;
+        if _mm256_movemask_pd(if keep { closed } else { act }) == 0 {
             continue;
         }
         let k = even(sw.k);
@@ -123,7 +144,16 @@ pub(super) unsafe fn dashpots<const BACK: bool, const HC: bool>(
         // parting contact's pull is limited by it. Computed for every
         // chunk with a closed contact: a test that could skip the square
         // root costs more in mispredicted branches than it saves.
-        let spring = hertz(k, dl);
+        let spring = match springs {
+            Springs::Reuse => pair(kept).0,
+            _ => hertz(k, dl),
+        };
+        if keep {
+            put(kept, spring, zero);
+            if _mm256_movemask_pd(act) == 0 {
+                continue;
+            }
+        }
         let sure = _mm256_and_pd(
             _mm256_cmp_pd::<_CMP_GE_OQ>(dl, eps),
             _mm256_cmp_pd::<_CMP_GE_OQ>(k, one),

@@ -79,6 +79,10 @@ pub struct Scratch<R> {
     /// The impulse each contact's dashpot gave its bead a over the step
     /// (N·s; damped chains only): the closing correction replaces it.
     pub dimp: Vec<R>,
+    /// The springs k·δ^{3/2} of a damping substep's even contacts, which
+    /// its two half-sweeps of them share (their overlaps are frozen; the
+    /// vector sweep only, [`super::simd`]; damped chains only).
+    pub spring: Vec<R>,
 }
 
 impl<R: Real> Scratch<R> {
@@ -95,6 +99,7 @@ impl<R: Real> Scratch<R> {
             imp: vec![z; m],
             near: Vec::new(),
             dimp: Vec::new(),
+            spring: Vec::new(),
         }
     }
 
@@ -108,6 +113,7 @@ impl<R: Real> Scratch<R> {
             imp: Vec::new(),
             near: Vec::new(),
             dimp: Vec::new(),
+            spring: Vec::new(),
         }
     }
 }
@@ -157,6 +163,7 @@ impl<R: Real> State<R> {
         if let Some(d) = &c.damp {
             (s.lost_c, s.lost_b) = (vec![zero; n + 1], vec![zero; n]);
             s.scratch.dimp = vec![zero; n + 1];
+            s.scratch.spring = vec![zero; n + 1];
             if d.hc != zero {
                 s.chi = (0..=n)
                     .map(|j| {
@@ -709,17 +716,31 @@ fn damp<R: Real>(c: &Consts<R>, d: &super::DampConsts<R>, s: &mut State<R>, tau:
     let zero = R::zero();
     let half = R::of(0.5) * tau;
     if d.gamma != zero || d.hc != zero {
-        for (parity, t) in [(0, half), (1, tau), (0, half)] {
+        // The even contacts' second half-sweep reads the springs the
+        // first one kept.
+        use Springs::{Keep, Reuse, Take};
+        for (parity, t, springs) in [(0, half, Keep), (1, tau, Take), (0, half, Reuse)] {
             let first = s.lo + (s.lo + parity) % 2;
             // Forward substeps (all of most methods') take the cheaper test
             // of a pull ([`dashpot`]).
             if t > zero {
-                sweep::<R, false>(c, d, s, first, t);
+                sweep::<R, false>(c, d, s, first, t, springs);
             } else {
-                dashpots_back(c, d, s, first, t);
+                dashpots_back(c, d, s, first, t, springs);
             }
         }
     }
+}
+
+/// What a sweep does with its contacts' springs (the vector sweep only,
+/// [`super::simd`]): computes them, computes and keeps them
+/// (`Scratch::spring`), or reads the ones a sweep of the same contacts at
+/// the same overlaps kept.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum Springs {
+    Take,
+    Keep,
+    Reuse,
 }
 
 /// The dashpots of contacts `first`, `first` + 2, … in the window for `t`,
@@ -734,6 +755,7 @@ fn sweep<R: Real, const BACK: bool>(
     s: &mut State<R>,
     first: usize,
     t: R,
+    springs: Springs,
 ) {
     let mut j = first;
     #[cfg(target_arch = "x86_64")]
@@ -763,18 +785,19 @@ fn sweep<R: Real, const BACK: bool>(
                 hc: d.hc.to64(),
                 chi_floor: d.chi_floor.to64(),
             };
-            let (v, lost, dimp, chi) = (
-                g(&mut s.v),
-                g(&mut s.lost_c),
-                g(&mut s.scratch.dimp),
-                g(&mut s.chi),
-            );
+            let out = super::simd::Out {
+                v: g(&mut s.v),
+                lost: g(&mut s.lost_c),
+                dimp: g(&mut s.scratch.dimp),
+                chi: g(&mut s.chi),
+                spring: g(&mut s.scratch.spring),
+            };
             // SAFETY: the CPU has AVX2 (checked just above).
             unsafe {
                 if d.hc != R::zero() {
-                    super::simd::dashpots::<BACK, true>(&sw, v, lost, dimp, chi, j, chunks);
+                    super::simd::dashpots::<BACK, true>(&sw, out, springs, j, chunks);
                 } else {
-                    super::simd::dashpots::<BACK, false>(&sw, v, lost, dimp, chi, j, chunks);
+                    super::simd::dashpots::<BACK, false>(&sw, out, springs, j, chunks);
                 }
             }
             j += 8 * chunks;
@@ -796,8 +819,9 @@ fn dashpots_back<R: Real>(
     s: &mut State<R>,
     first: usize,
     t: R,
+    springs: Springs,
 ) {
-    sweep::<R, true>(c, d, s, first, t);
+    sweep::<R, true>(c, d, s, first, t, springs);
 }
 
 /// The impulse on bead a that contact j's dashpot missed in the step, if it
@@ -1330,7 +1354,7 @@ mod tests {
     /// parities, forward and back in time.
     #[test]
     fn a_sweep_is_its_dashpots_one_by_one() {
-        use super::{dashpot, sweep, State};
+        use super::{dashpot, sweep, Springs, State};
         use crate::engine::granular::{Beads, Consts};
         use crate::scene::Scene;
         let scene = |damping: &str| {
@@ -1394,16 +1418,26 @@ mod tests {
                 let t = [2e-7, 1e-6, -3e-7][round % 3];
                 let first = (round / 3) % 2;
                 let (pre, mut one) = (s.clone(), s.clone());
-                if t > 0.0 {
-                    sweep::<f64, false>(&c, d, &mut s, first, t);
-                } else {
-                    sweep::<f64, true>(&c, d, &mut s, first, t);
-                }
-                for j in (first..=n).step_by(2) {
+                // A damping substep's three sweeps: the even contacts keep
+                // their springs, the odd ones take theirs, the even ones
+                // reuse theirs.
+                let passes = [
+                    (first, 0.5 * t, Springs::Keep),
+                    (1 - first, t, Springs::Take),
+                    (first, 0.5 * t, Springs::Reuse),
+                ];
+                for (from, t, springs) in passes {
                     if t > 0.0 {
-                        dashpot::<f64, false>(&c, d, &mut one, j, t);
+                        sweep::<f64, false>(&c, d, &mut s, from, t, springs);
                     } else {
-                        dashpot::<f64, true>(&c, d, &mut one, j, t);
+                        sweep::<f64, true>(&c, d, &mut s, from, t, springs);
+                    }
+                    for j in (from..=n).step_by(2) {
+                        if t > 0.0 {
+                            dashpot::<f64, false>(&c, d, &mut one, j, t);
+                        } else {
+                            dashpot::<f64, true>(&c, d, &mut one, j, t);
+                        }
                     }
                 }
                 assert!(same(&s.v, &one.v), "velocities, round {round}");
@@ -1414,7 +1448,7 @@ mod tests {
                 );
                 assert!(same(&s.chi, &one.chi), "chi, round {round}");
                 // Pulls cut at the spring's push happened (the rule's branch
-                // was taken), counted on the dashpots alone.
+                // was taken), counted on the dashpots alone in the first sweep.
                 if d.hc == 0.0 {
                     cut += (first..=n)
                         .step_by(2)
@@ -1423,9 +1457,9 @@ mod tests {
                             let va = if j > 0 { v[j - 1] } else { 0.0 };
                             let w = va - if j < n { v[j] } else { 0.0 };
                             let dl = c.d0[j] + pre.p[j];
-                            let x = d.beta[j] * t;
+                            let x = d.beta[j] * (0.5 * t);
                             let wn = w * (2.0 - x) / (2.0 + x);
-                            let lim = w + super::hertz(c.k[j], dl) * t * d.inv_mu[j];
+                            let lim = w + super::hertz(c.k[j], dl) * (0.5 * t) * d.inv_mu[j];
                             dl > 0.0 && w < 0.0 && t > 0.0 && wn > lim
                         })
                         .count();
