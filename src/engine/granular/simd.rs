@@ -16,7 +16,6 @@
 //! j + 6, which is also the order the beads' pairs unpack in — and writes
 //! the odd ones back unchanged.
 
-use super::step::Springs;
 use std::arch::x86_64::*;
 
 /// An f64 array as f64 (`R` is f64: the caller checks).
@@ -56,9 +55,14 @@ pub(super) struct Out<'a> {
 }
 
 /// Contacts j0, j0 + 2, … (`chunks` × 4 of them, all between two beads):
-/// their dashpots for `sw.t`; their springs computed, kept or reused as
-/// `springs` says (the same values: a spring is a function of k and the
+/// their dashpots for `sw.t`; their springs computed, and also kept in
+/// `out.spring` (`keep`), or read from it (`reuse`: kept by a sweep of the
+/// same contacts, the same values, a spring being a function of k and the
 /// frozen overlap alone).
+///
+/// Long (~150 lines) on purpose: one chunk's dashpots in `dashpot`'s order,
+/// step for step, so that the two read side by side; split, a dozen
+/// vectors would cross each call.
 ///
 /// # Safety
 /// The CPU has AVX2.
@@ -66,7 +70,7 @@ pub(super) struct Out<'a> {
 pub(super) unsafe fn dashpots<const BACK: bool, const HC: bool>(
     sw: &Sweep,
     out: Out,
-    springs: Springs,
+    (keep, reuse): (bool, bool),
     j0: usize,
     chunks: usize,
 ) {
@@ -86,7 +90,7 @@ pub(super) unsafe fn dashpots<const BACK: bool, const HC: bool>(
         assert!(end <= x.len());
     }
     assert!(end <= lost.len() && end <= dimp.len() && (!HC || end <= chi.len()));
-    assert!(springs == Springs::Take || end <= kept.len());
+    assert!(!(keep || reuse) || end <= kept.len());
     let zero = _mm256_setzero_pd();
     let one = _mm256_set1_pd(1.0);
     let two = _mm256_set1_pd(2.0);
@@ -134,7 +138,6 @@ pub(super) unsafe fn dashpots<const BACK: bool, const HC: bool>(
         // closed contact: the sweep that reuses them may find beads moving
         // that stood still here (an open contact stays open, its overlap
         // frozen).
-        let keep = springs == Springs::Keep;
         if _mm256_movemask_pd(if keep { closed } else { act }) == 0 {
             continue;
         }
@@ -144,10 +147,7 @@ pub(super) unsafe fn dashpots<const BACK: bool, const HC: bool>(
         // parting contact's pull is limited by it. Computed for every
         // chunk with a closed contact: a test that could skip the square
         // root costs more in mispredicted branches than it saves.
-        let spring = match springs {
-            Springs::Reuse => pair(kept).0,
-            _ => hertz(k, dl),
-        };
+        let spring = if reuse { pair(kept).0 } else { hertz(k, dl) };
         if keep {
             put(kept, spring, zero);
             if _mm256_movemask_pd(act) == 0 {

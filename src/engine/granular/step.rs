@@ -81,7 +81,7 @@ pub struct Scratch<R> {
     pub dimp: Vec<R>,
     /// The springs k·δ^{3/2} of a damping substep's even contacts, which
     /// its two half-sweeps of them share (their overlaps are frozen; the
-    /// vector sweep only, [`super::simd`]; damped chains only).
+    /// vector sweep only, `engine::granular::simd`; damped chains only).
     pub spring: Vec<R>,
 }
 
@@ -792,12 +792,13 @@ fn sweep<R: Real, const BACK: bool>(
                 chi: g(&mut s.chi),
                 spring: g(&mut s.scratch.spring),
             };
+            let sp = (springs == Springs::Keep, springs == Springs::Reuse);
             // SAFETY: the CPU has AVX2 (checked just above).
             unsafe {
                 if d.hc != R::zero() {
-                    super::simd::dashpots::<BACK, true>(&sw, out, springs, j, chunks);
+                    super::simd::dashpots::<BACK, true>(&sw, out, sp, j, chunks);
                 } else {
-                    super::simd::dashpots::<BACK, false>(&sw, out, springs, j, chunks);
+                    super::simd::dashpots::<BACK, false>(&sw, out, sp, j, chunks);
                 }
             }
             j += 8 * chunks;
