@@ -726,7 +726,7 @@ fn damp<R: Real>(c: &Consts<R>, d: &super::DampConsts<R>, s: &mut State<R>, tau:
             if t > zero {
                 sweep::<R, false>(c, d, s, first, t, springs);
             } else {
-                dashpots_back(c, d, s, first, t, springs);
+                sweep::<R, true>(c, d, s, first, t, springs);
             }
         }
     }
@@ -808,21 +808,6 @@ fn sweep<R: Real, const BACK: bool>(
         dashpot::<R, BACK>(c, d, s, j, t);
         j += 2;
     }
-}
-
-/// A sweep of dashpots back in time (`t` < 0: the negative substeps of
-/// some methods), its pull test the general one. Inlined, so that it is
-/// compiled for the step's vector width too ([`step`]).
-#[inline(always)]
-fn dashpots_back<R: Real>(
-    c: &Consts<R>,
-    d: &super::DampConsts<R>,
-    s: &mut State<R>,
-    first: usize,
-    t: R,
-    springs: Springs,
-) {
-    sweep::<R, true>(c, d, s, first, t, springs);
 }
 
 /// The impulse on bead a that contact j's dashpot missed in the step, if it
@@ -1348,7 +1333,7 @@ mod tests {
 
     /// A sweep of dashpots (in f64 on an AVX2 CPU, four contacts to a
     /// vector: `simd::dashpots`) gives the same bits as the contacts one by
-    /// one ([`dashpot`]), on random states of a dimer chain between walls
+    /// one ([`dashpot`]), on random states of a trimer chain between walls
     /// that take every branch: open contacts, overlaps of 1e-250 (a spring
     /// that underflows) to 1e-5, beads at equal speeds (−0 too), pulls cut
     /// at the spring's push, Hunt–Crossley χ new, kept and lowered, NaN; both
