@@ -6,9 +6,10 @@
 //! included) and as a run windows it (the beads near the wave: what a user
 //! waits for), with the mean window and the time per bead the run stepped
 //! (the plan's `Tally`: damping costs more near the wave, where contacts
-//! are closed, than ahead of it). Best of 3 runs, one thread.
+//! are closed, than ahead of it). Best of 3 runs (or of the first
+//! argument's), one thread.
 //!
-//! `cargo run --release --example damping_cost`
+//! `cargo run --release --example damping_cost [runs]`
 
 use hertz_cradle::engine::granular::{self, run::run_with, Beads, NoRows};
 use hertz_cradle::engine::{Overrides, Solver, Tally};
@@ -16,6 +17,16 @@ use hertz_cradle::scene::Scene;
 use std::time::Instant;
 
 fn main() {
+    let runs: usize = match std::env::args().nth(1) {
+        None => 3,
+        Some(a) => match a.parse() {
+            Ok(n) if n > 0 => n,
+            _ => {
+                eprintln!("damping_cost: runs must be a positive integer, not {a:?}");
+                std::process::exit(2);
+            }
+        },
+    };
     let base = |extra: &str, pre: bool| {
         format!(
             "balls = 1000\nradius = 0.005\n{}[launch]\nballs = 1\nvelocity = 0.1\n[probes]\nbeads = [250, 750]\n\
@@ -45,7 +56,7 @@ fn main() {
                 None,
             );
             let best = |plan: &granular::Plan, whole: bool| {
-                (0..3)
+                (0..runs)
                     .map(|_| {
                         let t = Instant::now();
                         let o = run_with(&b, plan, &mut NoRows, whole);
@@ -58,7 +69,7 @@ fn main() {
             let tally = Tally::new();
             plan.tally = tally.clone();
             let (tr, _) = best(&plan, false);
-            let stepped = tally.get().unwrap_or(0) as f64 / 3.0;
+            let stepped = tally.get().unwrap_or(0) as f64 / runs as f64;
             let ns = tw / (steps as f64 * b.n as f64) * 1e9;
             let nw = tr / stepped * 1e9;
             let (ns0, tr0, nw0) = *first.get_or_insert((ns, tr, nw));
