@@ -6,8 +6,9 @@
 //! included) and as a run windows it (the beads near the wave: what a user
 //! waits for), with the mean window and the time per bead the run stepped
 //! (the plan's `Tally`: damping costs more near the wave, where contacts
-//! are closed, than ahead of it). Best of 3 runs (or of the first
-//! argument's), one thread.
+//! are closed, than ahead of it). Each damping in every substep (the
+//! default) and at the steps' ends (`[solver] damping_split = "ends"`).
+//! Best of 3 runs (or of the first argument's), one thread.
 //!
 //! `cargo run --release --example damping_cost [runs]`
 
@@ -28,9 +29,19 @@ fn main() {
         },
     };
     let base = |extra: &str, pre: bool| {
+        // `extra`'s first line, if it names the split, goes in [solver].
+        let (split, extra) = match extra.strip_prefix("damping_split") {
+            Some(rest) => rest.split_once('\n').unwrap(),
+            None => ("", extra),
+        };
+        let split = if split.is_empty() {
+            String::new()
+        } else {
+            format!("damping_split{split}\n")
+        };
         format!(
             "balls = 1000\nradius = 0.005\n{}[launch]\nballs = 1\nvelocity = 0.1\n[probes]\nbeads = [250, 750]\n\
-             [solver]\ndt = 2e-7\n[stop]\nduration = 4e-3\n{extra}",
+             [solver]\ndt = 2e-7\n{split}[stop]\nduration = 4e-3\n{extra}",
             if pre {
                 "[walls]\nleft = true\nright = true\nprecompression = 10.0\n"
             } else {
@@ -47,6 +58,18 @@ fn main() {
             ("viscosity 0.5 N·s/m", "[damping]\nviscosity = 0.5\n"),
             ("restitution 0.9", "[damping]\nrestitution = 0.9\n"),
             ("air drag 10/s", "[damping]\nair_drag = 10.0\n"),
+            (
+                "viscosity 0.5 N·s/m, at the ends",
+                "damping_split = \"ends\"\n[damping]\nviscosity = 0.5\n",
+            ),
+            (
+                "restitution 0.9, at the ends",
+                "damping_split = \"ends\"\n[damping]\nrestitution = 0.9\n",
+            ),
+            (
+                "air drag 10/s, at the ends",
+                "damping_split = \"ends\"\n[damping]\nair_drag = 10.0\n",
+            ),
         ] {
             let s = Scene::from_toml_str("cost", &base(extra, pre)).unwrap();
             let b = Beads::from_scene(&s);

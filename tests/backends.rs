@@ -1362,6 +1362,10 @@ fn gpu_chain_kernel_gives_the_cpus_chain_outcomes() {
         "balls = 40\nradius = 0.005\n[walls]\nleft = true\n[piston]\nvelocity = 0.1\n[damping]\nviscosity = 20.0\nair_drag = 5.0\n[probes]\nbeads = [3, 8]\n[stop]\nduration = 3e-4\n",
         "balls = 20\nradius = 0.005\n[walls]\nright = true\n[launch]\nballs = 1\nvelocity = 0.2\n[damping]\nrestitution = 0.8\nviscosity = 0.5\n[probes]\nbeads = [5, 15]\n[solver]\ndt = 1e-7\n[stop]\nduration = 8e-5\n",
         "balls = 40\nradius = 0.005\n[walls]\nleft = true\nright = true\nprecompression = 2.0\n[pulse]\nbead = 0\nforce = 5.0\nduration = 2e-5\n[damping]\nviscosity = 1.0\n[probes]\nbeads = [10, 30]\n[stop]\nduration = 6e-5\n",
+        // the second with air drag and the damping at the steps' ends (a
+        // piston with them, the CPU's outcome on lavapipe by `cradle sweep`,
+        // made this test four minutes longer here: why is not yet known)
+        "balls = 20\nradius = 0.005\n[walls]\nright = true\n[launch]\nballs = 1\nvelocity = 0.2\n[damping]\nrestitution = 0.8\nviscosity = 0.5\nair_drag = 5.0\n[probes]\nbeads = [5, 15]\n[solver]\ndt = 1e-7\ndamping_split = \"ends\"\n[stop]\nduration = 8e-5\n",
         "balls = 40\nradius = 0.005\n[walls]\nleft = true\nright = true\nprecompression = 5.0\n[drive]\nbead = 10\nforce = 0.05\nfrequency = 20000.0\nduration = 8e-5\n[probes]\nbeads = [5, 15]\n[stop]\nduration = 1e-4\n",
     ];
     let (pushes, kinds) = (jobs.len(), pushed.len());
@@ -1424,7 +1428,7 @@ fn gpu_chain_kernel_gives_the_cpus_chain_outcomes() {
     }
     // The pistons did work and their fronts reached the probes, the damped
     // chains dissipated; the drive's amplitudes were measured.
-    for k in (pushes + 2..pushes + 5).chain(pushes + kinds + 2..pushes + kinds + 5) {
+    for k in (pushes + 2..pushes + kinds - 1).chain(pushes + kinds + 2..pushes + 2 * kinds - 1) {
         assert!(
             gpu[k].energy_dissipated > 0.0,
             "chain {k}: {}",

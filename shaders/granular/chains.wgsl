@@ -26,7 +26,8 @@
 // (step::half_sine, its factors printed from SINE_FACTORS). `real(x)` of a
 // literal is the precision's nearest value (layout::body_for). Between the
 // prelude and this file comes damping.wgsl for a damped chain's pipeline
-// (DAMPED: the damping substep `damp`, the closing corrections
+// (DAMPED: the damping substep `damp` and the damping's halves at the
+// steps' ends `damp_end`, the closing corrections
 // `crossings`, the observers' damped accelerations `accs` and `acc_at`
 // and `damping_jerk`), or undamped.wgsl, the same functions without it.
 
@@ -654,11 +655,20 @@ fn step(st: Step) {
     if (piston) {
         wall_kick(c0);
     }
+    // Damping at the ends (step::damp_end): its first half, the substeps,
+    // its second half.
+    let ends = DAMPED && (H.flags & F_ENDS) != 0u;
+    let hh = r_mul(real(0.5), h);
+    if (ends) {
+        sync();
+        damp_end(lo, hi, hh, true);
+        sync();
+    }
     kick(lo, hi, c0);
     sync();
     for (var j = 0u; j < s; j++) {
         let wj = wts[j];
-        if (DAMPED) {
+        if (DAMPED && !ends) {
             // Drift, damp, drift: a symmetric substep (step::damp).
             let tau = r_mul(wj, h);
             let half = r_mul(real(0.5), tau);
@@ -685,6 +695,10 @@ fn step(st: Step) {
             f = r_mul(pforce, push_sin(t));
         }
         accelerate_kick(lo, hi, on, f, c);
+        sync();
+    }
+    if (ends) {
+        damp_end(lo, hi, hh, false);
         sync();
     }
     if (kinked) {
@@ -1139,8 +1153,11 @@ fn after_step(st: Step) {
         }
     } else {
         // A damping substep's three sweeps of dashpots reach three beads
-        // further per substep.
-        let m = H.stages * select(1u, 4u, DAMPED) + 1u + MARGIN_EXTRA;
+        // further per substep; at the steps' ends, four sweeps four beads
+        // a step (State::shrink).
+        let ends = DAMPED && (H.flags & F_ENDS) != 0u;
+        let reach = select(H.stages * select(1u, 4u, DAMPED), H.stages + 4u, ends);
+        let m = reach + 1u + MARGIN_EXTRA;
         var plo = NONE;
         var phi = 0u;
         if (pulse_on) {

@@ -3,7 +3,7 @@
 // (backend::layout::granular::chain_shader); the other pipelines take
 // undamped.wgsl, whose functions of the same names do nothing, in its
 // place (so that they compile without this code). Twin of
-// engine::granular::step's damping substep (step::damp, step::dashpot,
+// engine::granular::step's damping (step::damp, step::damp_end, step::dashpot,
 // step::drag) and closing corrections (step::crossings), and of
 // observe.rs's damped accelerations and jerks.
 
@@ -102,6 +102,31 @@ fn damp(lo: u32, hi: u32, tau: real) {
     }
     if (drags) {
         drag(lo, hi, half);
+    }
+}
+
+// step::damp_end for t = h/2 at the step's start (first) or its end (with
+// F_ENDS): the drag, the even contacts' dashpots, the odd ones' (the end:
+// the reverse order), so that the step is a palindrome.
+fn damp_end(lo: u32, hi: u32, t: real, first: bool) {
+    let drags = (H.flags & F_DRAG) != 0u;
+    if (drags && first) {
+        drag(lo, hi, t);
+        sync();
+    }
+    if ((H.flags & (F_GAMMA | F_HC)) != 0u) {
+        for (var sweep = 0u; sweep < 2u; sweep++) {
+            let parity = select(1u - sweep, sweep, first);
+            for (var j = lo + me; j <= hi; j += WG) {
+                if ((j & 1u) == parity) {
+                    dashpot(j, t);
+                }
+            }
+            sync();
+        }
+    }
+    if (drags && !first) {
+        drag(lo, hi, t);
     }
 }
 

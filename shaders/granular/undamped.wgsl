@@ -8,6 +8,8 @@
 
 fn damp(lo: u32, hi: u32, tau: real) {}
 
+fn damp_end(lo: u32, hi: u32, t: real, first: bool) {}
+
 fn crossings(lo: u32, hi: u32) {}
 
 fn closed_in_step(j: u32) -> bool {

@@ -173,6 +173,9 @@ pub struct Solver {
     pub max_time: f64,
     /// Multiplies every step (1; 2 for the coarse run of an error estimate).
     pub step_factor: f64,
+    /// A damped chain's damping at the steps' ends, not in every substep
+    /// (`[solver] damping_split = "ends"`; docs/SPEC.md §9, "Damping").
+    pub damping_ends: bool,
 }
 
 impl Solver {
@@ -219,6 +222,7 @@ impl Solver {
             max_steps: scene.max_steps.unwrap_or(DEFAULT_MAX_STEPS),
             max_time: scene.duration.unwrap_or(DEFAULT_MAX_TIME),
             step_factor: 1.0,
+            damping_ends: scene.solver.damping_ends.unwrap_or(false),
         })
     }
 

@@ -143,6 +143,10 @@ pub struct SolverChoice {
     pub dt: Option<f64>,
     pub tolerance: Option<f64>,
     pub precision: Option<Precision>,
+    /// `damping_split = "ends"`: a damped chain's damping once a step, at
+    /// its ends (`Some(true)`), not in every substep (`Some(false)`, the
+    /// default).
+    pub damping_ends: Option<bool>,
 }
 
 /// A fixed flat wall's material (Hertz sphere–flat contact, R* = the bead's radius).

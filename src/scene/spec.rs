@@ -117,7 +117,9 @@ pub struct StopSpec {
 }
 
 /// `[solver]`: method, and either a fixed `dt` (s) or a `tolerance` on the
-/// outcome velocities relative to v_in; `precision` = "f32" | "f64" | "df64".
+/// outcome velocities relative to v_in; `precision` = "f32" | "f64" | "df64";
+/// `damping_split` = "substeps" | "ends" (a damped chain's damping in every
+/// substep or once a step at its ends; docs/SPEC.md §9, "Damping").
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SolverSpec {
@@ -125,6 +127,7 @@ pub struct SolverSpec {
     pub dt: Option<f64>,
     pub tolerance: Option<f64>,
     pub precision: Option<String>,
+    pub damping_split: Option<String>,
 }
 
 /// `[walls]`: fixed flat walls at the ends of a chain and the static force

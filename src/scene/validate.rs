@@ -26,7 +26,7 @@ impl SceneSpec {
             false => self.damping(&c, pendulum.as_ref())?,
         };
         let (duration, max_steps) = self.stop(&c, pendulum.as_ref())?;
-        let solver = self.solver(&c)?;
+        let solver = self.solver(&c, chain)?;
         let chain = match chain {
             true => {
                 Some(self.chain_setup(&c, n, &young_modulus, &poisson_ratio, &gap, duration)?)
@@ -390,8 +390,27 @@ impl SceneSpec {
         Ok((duration, max_steps))
     }
 
-    fn solver(&self, c: &Check) -> Result<SolverChoice, InputError> {
+    fn solver(&self, c: &Check, chain: bool) -> Result<SolverChoice, InputError> {
         let s = self.solver.clone().unwrap_or_default();
+        let damping_ends = match s.damping_split.as_deref() {
+            None => None,
+            Some(x) if !chain => {
+                return Err(c.err(
+                    "solver.damping_split",
+                    format!("{x:?}"),
+                    "a granular chain's key (where its dashpots and air drag go in a step); a cradle's damping has no split",
+                ))
+            }
+            Some("substeps") => Some(false),
+            Some("ends") => Some(true),
+            Some(x) => {
+                return Err(c.err(
+                    "solver.damping_split",
+                    format!("{x:?}"),
+                    "\"substeps\" or \"ends\"",
+                ))
+            }
+        };
         let method = match &s.method {
             None => None,
             Some(m) => Some(<Method as Choice>::from_name(m).ok_or_else(|| {
@@ -434,6 +453,7 @@ impl SceneSpec {
                 "must be in (0, 1)",
             )?,
             precision,
+            damping_ends,
         })
     }
 }

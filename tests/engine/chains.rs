@@ -187,6 +187,8 @@ fn skipping_beads_at_rest_changes_no_bit() {
         "balls = 150\n[walls]\nleft = true\nright = true\nprecompression = 5.0\n[pulse]\nbead = 70\nforce = 2.0\nduration = 1e-5\n[probes]\nbeads = [10, 140]\n[damping]\nviscosity = 5.0\n[stop]\nduration = 1e-4\n".into(),
         // Hunt–Crossley contacts
         struck(300, 0.1, "[stop]\nduration = 3e-4\n[damping]\nrestitution = 0.8\n"),
+        // the damping at the steps' ends (four sweeps a step)
+        struck(300, 0.1, "[stop]\nduration = 3e-4\n[damping]\nviscosity = 2.0\nrestitution = 0.8\nair_drag = 30.0\n[solver]\ndamping_split = \"ends\"\n"),
         // a drive
         "balls = 120\n[walls]\nleft = true\nright = true\nprecompression = 5.0\n[drive]\nbead = 30\nforce = 0.05\nfrequency = 20000.0\nduration = 5e-5\n[probes]\nbeads = [10, 100]\n[stop]\nduration = 1e-4\n".into(),
         // a piston
@@ -956,6 +958,58 @@ fn damping_keeps_the_methods_orders() {
     }
 }
 
+/// With `damping_split = "ends"` a damped step is symmetric too (the
+/// damping's halves at its ends, in reverse order at the end), so its error
+/// is even in h, but the splitting's error ∝ γ·h^2 is of order 2 with any
+/// method: on the chain of [`damping_keeps_the_methods_orders`] against
+/// [`damped_reference`] every method falls as h^2 (yoshida4 at finer steps,
+/// where its own h^4 error is below the damping's), and the error is the
+/// damping's: a tenth of the damping errs ~ten times less (kahanli6, whose
+/// own error is far below it).
+#[test]
+fn damping_at_the_ends_is_second_order_and_its_error_the_dampings() {
+    let text = |dt: f64, m: &str, weak: bool| {
+        let (g, c) = if weak { (0.3, 3.0) } else { (3.0, 30.0) };
+        format!(
+            "balls = 24\nradius = 0.005\nvelocity = [0.001, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0]\n\
+             [walls]\nleft = true\nright = true\nprecompression = 20.0\n[probes]\nbeads = [5, 18]\n\
+             [damping]\nviscosity = {g}\nair_drag = {c}\n[solver]\nmethod = \"{m}\"\ndt = {dt:e}\ndamping_split = \"ends\"\n[stop]\nduration = 2e-4\n"
+        )
+    };
+    let (_, b) = chain(&text(1e-8, "verlet", false));
+    let ts = b.time_scale();
+    let v_in = 0.001;
+    let reference =
+        |weak: bool| damped_reference(&chain(&text(1e-8, "verlet", weak)).1, 2e-4, ts / 2000.0).0;
+    let (v_ref, v_weak) = (reference(false), reference(true));
+    let err = |dt: f64, m: &str, weak: bool| {
+        let (_, o) = solve(&text(dt, m, weak), None, None);
+        assert_eq!(o.status, Status::Ok, "{o:?}");
+        largest_difference(&o.v, if weak { &v_weak } else { &v_ref }) / v_in
+    };
+    for (m, div) in [("kahanli6", 8.0), ("yoshida4", 64.0), ("verlet", 16.0)] {
+        let (e1, e2) = (err(ts / div, m, false), err(ts / (2.0 * div), m, false));
+        let q = (e1 / e2).log2();
+        eprintln!(
+            "{m}: t_s/{div} {e1:e}, t_s/{} {e2:e}, order {q:.2}",
+            2.0 * div
+        );
+        assert!(
+            (q - 2.0).abs() < 0.4,
+            "{m}: errors {e1:e} → {e2:e}, order {q:.2}, want 2"
+        );
+    }
+    let (strong, weak) = (
+        err(ts / 8.0, "kahanli6", false),
+        err(ts / 8.0, "kahanli6", true),
+    );
+    eprintln!("kahanli6 at t_s/8: {strong:e} with the damping, {weak:e} with a tenth of it");
+    assert!(
+        (6.0..16.0).contains(&(strong / weak)),
+        "a tenth of the damping: {strong:e} → {weak:e}"
+    );
+}
+
 /// A piston's steady shock (issue #45): mass and momentum balance across a
 /// steady front give, exactly for the averages behind it, its speed
 /// D = 2R·(k/m)^{2/5}·u_p^{1/5} and the force behind it F = (m/2R)·D·u_p
@@ -1040,6 +1094,44 @@ fn a_piston_needs_a_left_wall_a_speed_and_an_end() {
             "{text}\n→ {e}"
         );
     }
+}
+
+/// `[solver] damping_split` is "substeps" or "ends", on chains only; the
+/// plan follows it only where there is damping to split.
+#[test]
+fn the_damping_split_is_a_chains_choice_of_two() {
+    for (text, says) in [
+        (
+            "balls = 100\n[damping]\nviscosity = 1.0\n[solver]\ndamping_split = \"middle\"",
+            "\"substeps\" or \"ends\"",
+        ),
+        (
+            "balls = 5\n[launch]\nballs = 1\nheight = 0.01\n[damping]\nrestitution = 0.9\n[solver]\ndamping_split = \"ends\"",
+            "a granular chain's key",
+        ),
+    ] {
+        let e = Scene::from_toml_str("bad.toml", text)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("solver.damping_split") && e.contains(says) && e.contains("bad.toml"),
+            "{text}\n→ {e}"
+        );
+    }
+    let ends = |text: &str| {
+        let (s, b) = chain(text);
+        let solver = Solver::resolve(&s, &Overrides::default()).unwrap();
+        granular::plan(&b, &solver, None).damping_ends
+    };
+    let split = "[solver]\ndamping_split = \"ends\"\n";
+    assert!(ends(&struck(
+        100,
+        0.1,
+        &format!("[damping]\nair_drag = 1.0\n{split}")
+    )));
+    assert!(!ends(&struck(100, 0.1, "[damping]\nair_drag = 1.0\n")));
+    // Nothing to split: an undamped chain's plan is the same as without it.
+    assert!(!ends(&struck(100, 0.1, split)));
 }
 
 /// Band gap of a precompressed dimer (issue #45; Boechler et al. 2010):

@@ -17,7 +17,7 @@ use super::staging::map_read;
 use super::Gpu;
 pub use crate::backend::layout::granular::{chain_shader, ChainKernel};
 use crate::backend::layout::granular::{
-    ChainCtl, ChainHead, Offsets, Sc, F_DRAG, F_DRIVE, F_DURATION, F_END_AT, F_GAMMA, F_HC,
+    ChainCtl, ChainHead, Offsets, Sc, F_DRAG, F_DRIVE, F_DURATION, F_ENDS, F_END_AT, F_GAMMA, F_HC,
     F_KINKS, F_PISTON, F_PULSE, F_REFINE, F_RIGHT, MAX_STAGES, PROBE_REALS, SNAP_ENERGY,
     SNAP_WIDTH, ST_NON_FINITE, ST_STEP_CAP, ST_TIME_CAP,
 };
@@ -320,6 +320,9 @@ fn flags_of<R: Real>(b: &Beads, plan: &Plan, c: &Consts<R>, watch: &Watch<R>) ->
             if on != zero {
                 flags |= flag;
             }
+        }
+        if plan.damping_ends {
+            flags |= F_ENDS;
         }
     }
     flags

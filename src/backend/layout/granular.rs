@@ -23,7 +23,7 @@ use crate::scene::Precision;
 
 /// Which chain pipeline a chain runs in: `local` beads in workgroup memory
 /// (0: the global path; `backend::gpu::local_beads`), `wg` invocations
-/// per workgroup, and whether it has the damping substep (`damped`: a
+/// per workgroup, and whether it has the damping (`damped`: a
 /// pipeline of its own, so that the others compile without it). The
 /// outcomes do not depend on `local` and `wg` (the loops' per-bead work is
 /// the same, the reductions exact in any order).
@@ -56,6 +56,9 @@ pub const F_DRIVE: u32 = 256;
 pub const F_DRAG: u32 = 512;
 pub const F_GAMMA: u32 = 1024;
 pub const F_HC: u32 = 2048;
+/// A damped chain's damping at the steps' ends, not in every substep
+/// (`Plan::damping_ends`).
+pub const F_ENDS: u32 = 4096;
 /// Bits of `ChainHead::snaps`: the snapshots taken so far.
 pub const SNAP_WIDTH: u32 = 1;
 pub const SNAP_ENERGY: u32 = 2;
@@ -77,6 +80,7 @@ pub const CODES: &[(&str, u32)] = &[
     ("F_DRAG", F_DRAG),
     ("F_GAMMA", F_GAMMA),
     ("F_HC", F_HC),
+    ("F_ENDS", F_ENDS),
     ("SNAP_WIDTH", SNAP_WIDTH),
     ("SNAP_ENERGY", SNAP_ENERGY),
     ("ST_STEP_CAP", ST_STEP_CAP),

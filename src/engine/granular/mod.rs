@@ -124,7 +124,7 @@ pub struct Consts<R> {
     pub piston: R,
 }
 
-/// What the damping substep ([`step`]'s `damp`) reads, in the step's
+/// What the damping ([`step`]'s `damp` and `damp_end`) reads, in the step's
 /// precision (docs/SPEC.md §9, "Damping"). Contact j joins bead a = j − 1
 /// and bead b = j (a wall for j = 0 and j = n: infinitely heavy).
 #[derive(Clone, Debug, PartialEq)]
@@ -341,7 +341,7 @@ impl Beads {
     }
 
     /// Whether the local refinement may run on this chain ([`Plan::refine`]):
-    /// not on a damped one (its redone regions have no damping substep) nor
+    /// not on a damped one (its redone regions have no damping) nor
     /// one with a piston (a redone region would move bead 0 past the
     /// piston's account of its impulse).
     pub fn refinable(&self) -> bool {
@@ -563,6 +563,9 @@ pub struct Plan {
     pub method: crate::scene::Method,
     /// The tolerance the run is to meet ([`control`]); `None`: a given step.
     pub tolerance: Option<f64>,
+    /// A damped chain's damping once a step, at its ends, not in every
+    /// substep ([`step::Substeps::ends`]).
+    pub damping_ends: bool,
     /// Ends the run early when requested (its outcome then not the
     /// scene's: [`crate::engine::Stop`]).
     pub stop: crate::engine::Stop,
@@ -577,6 +580,7 @@ impl Plan {
             weights: self.weights,
             kicks: self.kicks.as_deref(),
             refine: self.refine.filter(|_| self.kicks.is_some()),
+            ends: self.damping_ends,
         }
     }
 }
@@ -678,6 +682,7 @@ pub fn plan(beads: &Beads, solver: &Solver, every: Option<f64>) -> Plan {
         every,
         precision: solver.precision,
         tolerance,
+        damping_ends: solver.damping_ends && beads.damped(),
         stop: crate::engine::Stop::default(),
         tally: crate::engine::Tally::default(),
     };
