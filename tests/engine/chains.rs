@@ -1102,7 +1102,7 @@ fn a_piston_needs_a_left_wall_a_speed_and_an_end() {
 fn the_damping_split_is_a_chains_choice_of_two() {
     for (text, says) in [
         (
-            "balls = 100\n[damping]\nviscosity = 1.0\n[solver]\ndamping_split = \"middle\"",
+            "balls = 100\n[launch]\nballs = 1\nvelocity = 0.1\n[damping]\nviscosity = 1.0\n[solver]\ndamping_split = \"middle\"",
             "\"substeps\" or \"ends\"",
         ),
         (
