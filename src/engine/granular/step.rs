@@ -799,24 +799,34 @@ fn damp_end<R: Real, const FIRST: bool>(
 }
 
 /// The air drag for `t` ([`damp_end`]): every moving bead's velocity times
-/// the Cayley map of c·t, the kinetic energy it takes kept per bead (a bead
-/// at rest keeps its velocity's bits, −0 too; the operations of
-/// [`drift_drag`]'s drag).
+/// the Cayley map of c·t, the kinetic energy it takes kept per bead
+/// ([`dragged`], as [`drift_drag`]'s drag).
 #[inline(always)]
 fn drag<R: Real>(d: &super::DampConsts<R>, s: &mut State<R>, t: R) {
-    let (zero, two, half) = (R::zero(), R::of(2.0), R::of(0.5));
-    let x = d.drag * t;
-    let f = (two - x) / (two + x);
+    let f = drag_factor(d.drag, t);
     let (lo, hi) = (s.lo, s.hi);
     let (v, lost, m) = (&mut s.v[lo..hi], &mut s.lost_b[lo..hi], &d.mass[lo..hi]);
     for i in 0..v.len() {
-        let vi = v[i];
-        if vi != zero {
-            let vn = vi * f;
-            v[i] = vn;
-            lost[i] = lost[i] + half * m[i] * (vi * vi - vn * vn);
-        }
+        (v[i], lost[i]) = dragged(v[i], lost[i], m[i], f);
     }
+}
+
+/// The Cayley map of the air drag `c` over `t`: (2 − c·t)/(2 + c·t).
+#[inline(always)]
+fn drag_factor<R: Real>(c: R, t: R) -> R {
+    let (two, x) = (R::of(2.0), c * t);
+    (two - x) / (two + x)
+}
+
+/// A bead's velocity `v` after the drag of factor `f`, and its energy lost
+/// so far `lost` with what the drag took (mass `m`): selects, not branches,
+/// and a bead at rest keeps its velocity's bits, −0 too.
+#[inline(always)]
+fn dragged<R: Real>(v: R, lost: R, m: R, f: R) -> (R, R) {
+    let zero = R::zero();
+    let vn = if v != zero { v * f } else { v };
+    let l = lost + R::of(0.5) * m * (v * v - vn * vn);
+    (vn, if v != zero { l } else { lost })
 }
 
 /// What a sweep does with its contacts' springs (the vector sweep only,
@@ -930,22 +940,16 @@ fn drift_drag<R: Real, const DRAG_FIRST: bool>(
     dt: R,
     piston: R,
 ) {
-    let (zero, two, half) = (R::zero(), R::of(2.0), R::of(0.5));
-    let x = d.drag * dt;
-    let f = (two - x) / (two + x);
+    let zero = R::zero();
+    let f = drag_factor(d.drag, dt);
     let n = s.v.len();
     let (lo, hi) = (s.lo, s.hi);
     if lo == hi {
         return;
     }
-    // A bead's velocity after the drag, and its loss (selects, not
-    // branches: a bead at rest keeps its velocity's bits, −0 too).
+    // A bead's velocity after the drag ([`dragged`]).
     let vel = |v: R| if v != zero { v * f } else { v };
-    let dragged = |v: R, lost: R, m: R| {
-        let vn = vel(v);
-        let l = lost + half * m * (v * v - vn * vn);
-        (vn, if v != zero { l } else { lost })
-    };
+    let dragged = |v: R, lost: R, m: R| dragged(v, lost, m, f);
     // The wall contacts read the velocities before the drag or after it.
     if !DRAG_FIRST {
         drift_walls(s, dt, piston);
