@@ -8,9 +8,14 @@
 //! (the plan's `Tally`: damping costs more near the wave, where contacts
 //! are closed, than ahead of it). Each damping in every substep (the
 //! default) and at the steps' ends (`[solver] damping_split = "ends"`).
-//! Best of 3 runs (or of the first argument's), one thread.
+//! Best of 3 runs (or of the first argument's), one thread, the chain's
+//! cases taking turns (round-robin), so that a slow spell of a shared
+//! machine slows one run of each rather than one case's every run.
 //!
-//! `cargo run --release --example damping_cost [runs]`
+//! `cargo run --release --example damping_cost [runs] [filter]` (filter:
+//! only the rows whose chain and damping, "chain: damping", contain it —
+//! e.g. "precompressed 10 N: viscosity" — each still against its chain's
+//! undamped run)
 
 use hertz_cradle::engine::granular::{self, run::run_with, Beads, NoRows};
 use hertz_cradle::engine::{Overrides, Solver, Tally};
@@ -28,6 +33,7 @@ fn main() {
             }
         },
     };
+    let filter = std::env::args().nth(2).unwrap_or_default();
     let base = |extra: &str, pre: bool| {
         // `extra`'s first line, if it names the split, goes in [solver].
         let (split, extra) = match extra.strip_prefix("damping_split") {
@@ -51,58 +57,70 @@ fn main() {
     };
     println!("| chain | damping | ns per bead-step (whole chain) | × undamped | run, windowed (s) | × undamped | mean window (beads) | ns per bead-step (window) | × undamped |");
     println!("|---|---|---|---|---|---|---|---|---|");
+    let dampings = [
+        ("none", ""),
+        ("viscosity 0.5 N·s/m", "[damping]\nviscosity = 0.5\n"),
+        ("restitution 0.9", "[damping]\nrestitution = 0.9\n"),
+        ("air drag 10/s", "[damping]\nair_drag = 10.0\n"),
+        (
+            "viscosity 0.5 N·s/m, at the ends",
+            "damping_split = \"ends\"\n[damping]\nviscosity = 0.5\n",
+        ),
+        (
+            "restitution 0.9, at the ends",
+            "damping_split = \"ends\"\n[damping]\nrestitution = 0.9\n",
+        ),
+        (
+            "air drag 10/s, at the ends",
+            "damping_split = \"ends\"\n[damping]\nair_drag = 10.0\n",
+        ),
+    ];
     for pre in [false, true] {
+        let chain = if pre {
+            "precompressed 10 N"
+        } else {
+            "uncompressed"
+        };
+        // The chain's runs: undamped first, then the dampings the filter
+        // keeps.
+        let cases: Vec<_> = dampings
+            .iter()
+            .filter(|(name, _)| *name == "none" || format!("{chain}: {name}").contains(&filter))
+            .map(|&(name, extra)| {
+                let s = Scene::from_toml_str("cost", &base(extra, pre)).unwrap();
+                let b = Beads::from_scene(&s);
+                let solver = Solver::resolve(&s, &Overrides::default()).unwrap();
+                let whole = granular::plan(&b, &solver, None);
+                let mut windowed = granular::plan(&b, &solver, None);
+                // The windowed runs' bead-steps, as the run counts them.
+                let tally = Tally::new();
+                windowed.tally = tally.clone();
+                (name, b, whole, windowed, tally)
+            })
+            .collect();
+        // Round-robin, best of `runs` each: a slow spell of the machine
+        // slows every case's run in it, not one case's best.
+        let mut best = vec![[(f64::INFINITY, 0u64); 2]; cases.len()];
+        for _ in 0..runs {
+            for (case, (_, b, whole, windowed, _)) in best.iter_mut().zip(&cases) {
+                for (slot, (plan, w)) in case.iter_mut().zip([(whole, true), (windowed, false)]) {
+                    let t = Instant::now();
+                    let o = run_with(b, plan, &mut NoRows, w);
+                    let x = (t.elapsed().as_secs_f64(), o.steps);
+                    if x.0 < slot.0 {
+                        *slot = x;
+                    }
+                }
+            }
+        }
         let mut first = None;
-        for (name, extra) in [
-            ("none", ""),
-            ("viscosity 0.5 N·s/m", "[damping]\nviscosity = 0.5\n"),
-            ("restitution 0.9", "[damping]\nrestitution = 0.9\n"),
-            ("air drag 10/s", "[damping]\nair_drag = 10.0\n"),
-            (
-                "viscosity 0.5 N·s/m, at the ends",
-                "damping_split = \"ends\"\n[damping]\nviscosity = 0.5\n",
-            ),
-            (
-                "restitution 0.9, at the ends",
-                "damping_split = \"ends\"\n[damping]\nrestitution = 0.9\n",
-            ),
-            (
-                "air drag 10/s, at the ends",
-                "damping_split = \"ends\"\n[damping]\nair_drag = 10.0\n",
-            ),
-        ] {
-            let s = Scene::from_toml_str("cost", &base(extra, pre)).unwrap();
-            let b = Beads::from_scene(&s);
-            let mut plan = granular::plan(
-                &b,
-                &Solver::resolve(&s, &Overrides::default()).unwrap(),
-                None,
-            );
-            let best = |plan: &granular::Plan, whole: bool| {
-                (0..runs)
-                    .map(|_| {
-                        let t = Instant::now();
-                        let o = run_with(&b, plan, &mut NoRows, whole);
-                        (t.elapsed().as_secs_f64(), o.steps)
-                    })
-                    .fold((f64::INFINITY, 0), |a, x| if x.0 < a.0 { x } else { a })
-            };
-            let (tw, steps) = best(&plan, true);
-            // The windowed runs' bead-steps, as the run counts them.
-            let tally = Tally::new();
-            plan.tally = tally.clone();
-            let (tr, _) = best(&plan, false);
+        for ((name, b, _, _, tally), [(tw, steps), (tr, _)]) in cases.iter().zip(best) {
             let stepped = tally.get().unwrap_or(0) as f64 / runs as f64;
             let ns = tw / (steps as f64 * b.n as f64) * 1e9;
             let nw = tr / stepped * 1e9;
             let (ns0, tr0, nw0) = *first.get_or_insert((ns, tr, nw));
             println!(
-                "| {} | {name} | {ns:.2} | {:.2} | {tr:.3} | {:.1} | {:.0} | {nw:.2} | {:.2} |",
-                if pre {
-                    "precompressed 10 N"
-                } else {
-                    "uncompressed"
-                },
+                "| {chain} | {name} | {ns:.2} | {:.2} | {tr:.3} | {:.1} | {:.0} | {nw:.2} | {:.2} |",
                 ns / ns0,
                 tr / tr0,
                 stepped / steps as f64,

@@ -829,6 +829,21 @@ fn dragged<R: Real>(v: R, lost: R, m: R, f: R) -> (R, R) {
     (vn, if v != zero { l } else { lost })
 }
 
+/// Whether [`sweep`] takes the vector path ([`super::simd`]: f64 on an
+/// x86-64 CPU with AVX2).
+#[inline(always)]
+fn vector_sweeps<R: Real>() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        std::any::TypeId::of::<R>() == std::any::TypeId::of::<f64>()
+            && std::is_x86_feature_detected!("avx2")
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
+    }
+}
+
 /// What a sweep does with its contacts' springs (the vector sweep only,
 /// [`super::simd`]): computes them, computes and keeps them
 /// (`Scratch::spring`), or reads the ones a sweep of the same contacts at
@@ -856,9 +871,7 @@ fn sweep<R: Real, const BACK: bool>(
 ) {
     let mut j = first;
     #[cfg(target_arch = "x86_64")]
-    if std::any::TypeId::of::<R>() == std::any::TypeId::of::<f64>()
-        && std::is_x86_feature_detected!("avx2")
-    {
+    if vector_sweeps::<R>() {
         let (n, hi) = (s.v.len(), s.hi);
         if j == 0 && j <= hi {
             dashpot::<R, BACK>(c, d, s, 0, t);
@@ -1108,18 +1121,32 @@ fn crossings<R: Real>(c: &Consts<R>, d: &super::DampConsts<R>, s: &mut State<R>)
     let zero = R::zero();
     let (lo, hi) = (s.lo, s.hi);
     if d.hc != zero {
-        // An open contact's next closing sets its χ afresh.
-        for j in lo..=hi {
-            if c.d0[j] + s.p[j] <= zero {
-                s.chi[j] = zero;
-            }
+        // An open contact's next closing sets its χ afresh (a select, not
+        // a branch: a loop that vectorises).
+        let (d0, p, chi) = (&c.d0[lo..=hi], &s.p[lo..=hi], &mut s.chi[lo..=hi]);
+        for j in 0..chi.len() {
+            chi[j] = if d0[j] + p[j] <= zero { zero } else { chi[j] };
         }
     }
     if d.gamma == zero {
         return;
     }
     let closed = |s: &State<R>, j: usize| closing_correction(c, d, s, j);
-    if !(lo..=hi).any(|j| closed(s, j).is_some()) {
+    // Most steps close no contact: one branch-free pass over the window
+    // (a loop that vectorises) finds out, by a test every contact that
+    // closes passes ([`closing_correction`]'s, its spring's push > 0
+    // weakened to k ≠ 0).
+    let (d0, k, ps, p) = (
+        &c.d0[lo..=hi],
+        &c.k[lo..=hi],
+        &s.scratch.p[lo..=hi],
+        &s.p[lo..=hi],
+    );
+    let mut any = false;
+    for j in 0..d0.len() {
+        any |= (d0[j] + ps[j] <= zero) & (d0[j] + p[j] > zero) & (k[j] != zero);
+    }
+    if !any {
         return;
     }
     let half = R::of(0.5);
