@@ -537,6 +537,18 @@ fn trace_rows_fall_on_the_clock_with_the_tolerance_values() {
     }
 }
 
+/// A scene file `bad.toml` of `text` is refused, the error naming the
+/// file, the key and what it allows (`says`).
+fn assert_refused(text: &str, key: &str, says: &str) {
+    let e = Scene::from_toml_str("bad.toml", text)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains(key) && e.contains(says) && e.contains("bad.toml"),
+        "{text}\n→ {e}"
+    );
+}
+
 #[test]
 fn bad_chain_input_names_key_value_and_range() {
     for (text, key, says) in [
@@ -558,8 +570,7 @@ fn bad_chain_input_names_key_value_and_range() {
         ("balls = 100\n[damping]\nrestitution = 1.5\n[launch]\nvelocity = 1.0", "damping.restitution", "(0, 1]"),
         ("balls = 3\n[damping]\nviscosity = 1.0\n[launch]\nvelocity = 1.0", "damping.viscosity", "granular chain"),
     ] {
-        let e = Scene::from_toml_str("bad.toml", text).unwrap_err().to_string();
-        assert!(e.contains(key) && e.contains(says) && e.contains("bad.toml"), "{text}\n→ {e}");
+        assert_refused(text, key, says);
     }
 }
 
@@ -1086,13 +1097,7 @@ fn a_piston_needs_a_left_wall_a_speed_and_an_end() {
             "never stops",
         ),
     ] {
-        let e = Scene::from_toml_str("bad.toml", text)
-            .unwrap_err()
-            .to_string();
-        assert!(
-            e.contains(key) && e.contains(says) && e.contains("bad.toml"),
-            "{text}\n→ {e}"
-        );
+        assert_refused(text, key, says);
     }
 }
 
@@ -1110,13 +1115,7 @@ fn the_damping_split_is_a_chains_choice_of_two() {
             "a granular chain's key",
         ),
     ] {
-        let e = Scene::from_toml_str("bad.toml", text)
-            .unwrap_err()
-            .to_string();
-        assert!(
-            e.contains("solver.damping_split") && e.contains(says) && e.contains("bad.toml"),
-            "{text}\n→ {e}"
-        );
+        assert_refused(text, "solver.damping_split", says);
     }
     let ends = |text: &str| {
         let (s, b) = chain(text);
@@ -1190,8 +1189,7 @@ fn a_drive_needs_a_frequency_a_force_and_an_end() {
         ("balls = 100\n[drive]\nforce = 1.0\nfrequency = 5.0\nduration = 2e-3\n[stop]\nduration = 1e-3", "drive.duration", "at most"),
         ("balls = 100\n[drive]\nforce = 1.0\nfrequency = 5.0\n[pulse]\nforce = 1.0\nduration = 1e-5\n[stop]\nduration = 1e-3", "drive", "not both"),
     ] {
-        let e = Scene::from_toml_str("bad.toml", text).unwrap_err().to_string();
-        assert!(e.contains(key) && e.contains(says) && e.contains("bad.toml"), "{text}\n→ {e}");
+        assert_refused(text, key, says);
     }
 }
 
