@@ -205,9 +205,12 @@ impl Chain {
 
     /// Overlap of every contact at the start: δ_c = x_c − x_{c+1} − gap_c.
     pub fn initial_overlap(&self) -> Vec<f64> {
-        (0..self.k.len())
-            .map(|c| self.x0[c] - self.x0[c + 1] - self.gap[c])
-            .collect()
+        (0..self.k.len()).map(|c| self.overlap0(c)).collect()
+    }
+
+    /// Contact c's initial overlap (m; negative: a gap).
+    pub fn overlap0(&self, c: usize) -> f64 {
+        self.x0[c] - self.x0[c + 1] - self.gap[c]
     }
 
     /// Displacement of every body from body 0's and the overlaps:

@@ -103,31 +103,58 @@ pub fn num_into(x: f64, s: &mut String) {
     while n > 0 && digits[n - 1] == b'0' {
         n -= 1;
     }
-    let push = |s: &mut String, d: &[u8]| d.iter().for_each(|&c| s.push(c as char));
+    // The text, laid out in bytes here and pushed once: at most a sign,
+    // "0." and 3 zeros (|x| ≥ 1e-3), 17 digits, 7 zeros (|x| < 1e7) or an
+    // exponent of 4 characters.
+    let mut out = [0u8; 40];
+    let mut len = 0;
+    let mut push = |bytes: &[u8]| {
+        out[len..len + bytes.len()].copy_from_slice(bytes);
+        len += bytes.len();
+    };
     if x < 0.0 {
-        s.push('-');
+        push(b"-");
     }
     if (1e-3..1e7).contains(&x.abs()) {
         if point <= 0 {
-            s.push_str("0.");
-            (0..-point).for_each(|_| s.push('0'));
-            push(s, &digits[..n]);
+            push(b"0.");
+            push(&b"000"[..(-point) as usize]);
+            push(&digits[..n]);
         } else if point as usize >= n {
-            push(s, &digits[..n]);
-            (0..point as usize - n).for_each(|_| s.push('0'));
+            push(&digits[..n]);
+            push(&b"0000000"[..point as usize - n]);
         } else {
-            push(s, &digits[..point as usize]);
-            s.push('.');
-            push(s, &digits[point as usize..n]);
+            push(&digits[..point as usize]);
+            push(b".");
+            push(&digits[point as usize..n]);
         }
     } else {
-        s.push(digits[0] as char);
+        push(&digits[..1]);
         if n > 1 {
-            s.push('.');
-            push(s, &digits[1..n]);
+            push(b".");
+            push(&digits[1..n]);
         }
-        let _ = write!(s, "e{}", point - 1);
+        push(b"e");
+        let e = point - 1;
+        if e < 0 {
+            push(b"-");
+        }
+        let e = e.unsigned_abs();
+        let d = [
+            b'0' + (e / 100) as u8,
+            b'0' + (e / 10 % 10) as u8,
+            b'0' + (e % 10) as u8,
+        ];
+        let skip = if e >= 100 {
+            0
+        } else if e >= 10 {
+            1
+        } else {
+            2
+        };
+        push(&d[skip..]);
     }
+    s.push_str(std::str::from_utf8(&out[..len]).expect("ASCII digits"));
 }
 
 /// The id of a CSV row (its first field), if it has one.
@@ -174,24 +201,21 @@ fn few_exact_digits(x: f64) -> bool {
     m >>= tz;
     e += tz as i32;
     // x = m · 2^e with m odd.
-    let exact: u128 = if e >= 0 {
-        match (m as u128).checked_shl(e as u32) {
-            Some(v) if e < 75 => v,
-            _ => return true,
-        }
-    } else {
-        // m · 2^-k = m · 5^k / 10^k: m · 5^k's digits, more than 18 once k > 26.
+    const LIMIT: u128 = 1_000_000_000_000_000_000;
+    if e < 0 {
+        // m · 2^-k = m · 5^k / 10^k: m · 5^k's digits (odd: no trailing
+        // zero), more than 18 once k > 26.
         let k = (-e) as u32;
-        if k > 26 {
-            return false;
-        }
-        (m as u128) * 5u128.pow(k)
+        return k <= 26 && (m as u128) * 5u128.pow(k) < LIMIT;
+    }
+    let mut v = match (m as u128).checked_shl(e as u32) {
+        Some(v) if e < 75 => v,
+        _ => return true,
     };
-    let mut v = exact;
-    while v.is_multiple_of(10) {
+    while v >= LIMIT && v.is_multiple_of(10) {
         v /= 10;
     }
-    v < 1_000_000_000_000_000_000u128
+    v < LIMIT
 }
 
 /// The fields of one row; missing balls (N below `width`) are empty. A
@@ -332,11 +356,10 @@ pub fn emit(
 
 /// A field as the CSV writes it (text in `scratch` for numbers).
 pub fn field_text<'a>(f: Field<'a>, scratch: &'a mut String) -> &'a str {
-    use std::fmt::Write;
     match f {
         Field::Int(x) => {
             scratch.clear();
-            let _ = write!(scratch, "{x}");
+            scratch.push_str(itoa::Buffer::new().format(x));
             scratch
         }
         Field::Num(x) => {

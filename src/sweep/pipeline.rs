@@ -194,7 +194,11 @@ fn batch(
                         bytes.push(b',');
                     }
                     sep = true;
-                    row::push_csv_field(&mut bytes, row::field_text(field, &mut scratch));
+                    match field {
+                        row::Field::Text(t) => row::push_csv_field(&mut bytes, t),
+                        // A number's text needs no quotes.
+                        f => bytes.extend_from_slice(row::field_text(f, &mut scratch).as_bytes()),
+                    }
                 });
                 bytes.push(b'\n');
             }

@@ -10,7 +10,7 @@
 //! | `adapter.rs` | which adapter to open |
 //! | `profile.rs` | [`Profile`], pacing, lavapipe's loop budget, device counters |
 //! | `shaders.rs` | the WGSL assembled, the pipelines (all built by [`Gpu::prepare`]) |
-//! | `pack.rs` | one scene's header, params and state, by name through `layout` |
+//! | `pack.rs` | a batch's headers, params and states, placed by name through `layout` (once per scene shape), packed in parallel |
 //! | `device.rs` | one batch on the device: buffers, rounds in flight, read-back |
 //! | `staging.rs` | staging both models share: uploads through a mapped buffer, read-back where the mapping lies |
 //! | `probe.rs` | the df64 arithmetic probe (tests) |
@@ -30,12 +30,13 @@ use std::sync::{Arc, Mutex};
 
 use anyhow::{anyhow, bail, Context, Result};
 use bytemuck::Pod;
+use rayon::prelude::*;
 
 use super::layout::cradle::{self as layout, PARAMS, STATE};
 use super::{Backend, ChainSource, DeviceStats, Job, Needs};
 use crate::engine::cradle::Run;
 use crate::engine::real::{Df64, Real};
-use crate::engine::{plan, simulate_chain, Chain, Outcome, Silent, Solver, UNSTEPPED};
+use crate::engine::{simulate_chain, Chain, Outcome, Silent, Solver};
 use crate::scene::Precision;
 pub use adapter::{find_adapter, quiet_mesa_without_session, Want};
 use device::WORKGROUP;
@@ -258,17 +259,12 @@ impl Gpu {
         wide: Option<usize>,
     ) -> Result<Vec<(Run, f64)>> {
         let t0 = std::time::Instant::now();
-        let mut headers = Vec::with_capacity(jobs.len());
-        let mut dts = Vec::with_capacity(jobs.len());
-        let (mut params, mut state): (Vec<R>, Vec<R>) = (Vec::new(), Vec::new());
-        for (ch, solver) in jobs {
-            let (sp, lim) = plan(ch, solver);
-            let sp = sp.unwrap_or(UNSTEPPED);
-            dts.push(crate::engine::row_dt(&sp));
-            headers.push(pack::header(ch, &sp, &lim, params.len(), state.len()));
-            params.extend(pack::scene_params::<R>(ch, &sp, &lim));
-            state.extend(pack::scene_state::<R>(ch, sp.weights.len()));
-        }
+        let pack::Batch {
+            headers,
+            dts,
+            params,
+            state,
+        } = pack::batch::<R>(jobs);
         let t1 = std::time::Instant::now();
         let (words, reals) = {
             let _turn = self.on_device.enter();
@@ -279,10 +275,11 @@ impl Gpu {
         };
         let t3 = std::time::Instant::now();
         let runs = headers
-            .iter()
+            .par_iter()
             .zip(jobs)
             .zip(dts)
             .enumerate()
+            .with_min_len(256)
             .map(|(i, ((h, (ch, _)), dt))| (pack::run(ch, h, i, &words, &reals), dt))
             .collect();
         self.stats.host(0.0, t3.elapsed().as_secs_f64(), 0.0);

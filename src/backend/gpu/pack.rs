@@ -4,52 +4,168 @@
 //! value is placed and read **by name** through the layout table, never by
 //! position: reordering the table moves the host's values and the shader's
 //! offsets (the generated prelude) together. The test below packs with a
-//! reordered table and reads every field back by name.
+//! reordered table and reads every field back by name. Names are resolved
+//! to places once per scene shape ([`Placement`]), and a batch's scenes are
+//! packed in parallel straight into its buffers ([`batch`]).
+
+use rayon::prelude::*;
 
 use crate::backend::layout::cradle::{self as layout, Field, GpuHeader, PARAMS, STATE, WORDS};
 use crate::backend::layout::cradle::{FLAG_DAMPED, FLAG_DRAG, FLAG_EXACT, FLAG_PENDULUM};
 use crate::engine::cradle::{closing_speed_floor, kick_weights, Run};
 use crate::engine::real::Real;
-use crate::engine::{Chain, Limits, StepPlan};
+use crate::engine::{plan, row_dt, Chain, Limits, Solver, StepPlan, UNSTEPPED};
 
-/// A scene's region of a per-scene buffer, filled field by field by name;
-/// [`Region::finish`] checks that every field of the table was set once.
-struct Region<'t, R> {
-    fields: &'t [Field],
-    nb: usize,
-    nw: usize,
-    values: Vec<R>,
-    set: Vec<bool>,
+/// A batch's scenes planned and packed ([`batch`]): a header and a `dt`
+/// column each ([`crate::engine::row_dt`] of the plan it runs with), and
+/// the parameter and state buffers.
+pub(super) struct Batch<R> {
+    pub headers: Vec<GpuHeader>,
+    pub dts: Vec<f64>,
+    pub params: Vec<R>,
+    pub state: Vec<R>,
 }
 
-impl<'t, R: Real> Region<'t, R> {
-    fn new(fields: &'t [Field], nb: usize, nw: usize) -> Self {
-        Region {
+/// Plan and pack `jobs`: planned in order (each scene's regions start where
+/// the one before it ends; a [`Placement`] per shape, resolved once), then
+/// packed in parallel on the rayon pool, straight into the batch's buffers.
+pub(super) fn batch<R: Real>(jobs: &[(&Chain, &Solver)]) -> Batch<R> {
+    type Shape = ((usize, usize), Placement<'static>, Placement<'static>);
+    let mut shapes: Vec<Shape> = Vec::new();
+    let mut plans = Vec::with_capacity(jobs.len());
+    let mut headers = Vec::with_capacity(jobs.len());
+    let mut dts = Vec::with_capacity(jobs.len());
+    let (mut np, mut ns) = (0, 0);
+    for (ch, solver) in jobs {
+        let (sp, lim) = plan(ch, solver);
+        let sp = sp.unwrap_or(UNSTEPPED);
+        let key = (ch.n_bodies(), sp.weights.len());
+        let k = match shapes.iter().position(|s| s.0 == key) {
+            Some(k) => k,
+            None => {
+                let (nb, nw) = key;
+                let (p, s) = (
+                    Placement::new(PARAMS, nb, nw),
+                    Placement::new(STATE, nb, nw),
+                );
+                shapes.push((key, p, s));
+                shapes.len() - 1
+            }
+        };
+        dts.push(row_dt(&sp));
+        headers.push(header(ch, &sp, &lim, np, ns));
+        np += shapes[k].1.len();
+        ns += shapes[k].2.len();
+        plans.push((sp, lim, k));
+    }
+    let (mut p_buf, mut s_buf) = (vec![R::zero(); np], vec![R::zero(); ns]);
+    let mut regions = Vec::with_capacity(jobs.len());
+    let (mut p_rest, mut s_rest) = (&mut p_buf[..], &mut s_buf[..]);
+    for (_, _, k) in &plans {
+        let (p, pr) = std::mem::take(&mut p_rest).split_at_mut(shapes[*k].1.len());
+        let (s, sr) = std::mem::take(&mut s_rest).split_at_mut(shapes[*k].2.len());
+        (p_rest, s_rest) = (pr, sr);
+        regions.push((p, s));
+    }
+    regions
+        .into_par_iter()
+        .zip(plans.par_iter())
+        .zip(jobs.par_iter())
+        .with_min_len(256)
+        .for_each(|(((p, s), (sp, lim, k)), (ch, _))| {
+            params(&shapes[*k].1, p, ch, sp, lim);
+            state(&shapes[*k].2, s, ch);
+        });
+    Batch {
+        headers,
+        dts,
+        params: p_buf,
+        state: s_buf,
+    }
+}
+
+/// Where each field of a layout table lies in the region of a scene of one
+/// shape (`nb` bodies, `nw` substep weights): resolved once per shape, so
+/// that packing a scene looks up no offset.
+pub(super) struct Placement<'t> {
+    fields: &'t [Field],
+    ranges: Vec<std::ops::Range<usize>>,
+    len: usize,
+}
+
+impl<'t> Placement<'t> {
+    pub(super) fn new(fields: &'t [Field], nb: usize, nw: usize) -> Self {
+        assert!(fields.len() <= 64, "a layout table of at most 64 fields");
+        let ranges = fields
+            .iter()
+            .map(|(name, _)| layout::range(fields, name, nb, nw))
+            .collect();
+        Placement {
             fields,
-            nb,
-            nw,
-            values: vec![R::zero(); layout::len(fields, nb, nw)],
-            set: vec![false; fields.len()],
+            ranges,
+            len: layout::len(fields, nb, nw),
+        }
+    }
+
+    /// The region's length.
+    pub(super) fn len(&self) -> usize {
+        self.len
+    }
+}
+
+/// A scene's region of a per-scene buffer, filled field by field by name
+/// where its [`Placement`] says; [`Region::finish`] checks that every
+/// field of the table was set once.
+struct Region<'p, 'o, R> {
+    place: &'p Placement<'p>,
+    out: &'o mut [R],
+    /// Bit k: field k is set.
+    set: u64,
+    /// The field after the last one set: the packers set them mostly in
+    /// the table's order, so a name is usually found at the first look.
+    next: usize,
+}
+
+impl<'p, 'o, R: Real> Region<'p, 'o, R> {
+    fn new(place: &'p Placement<'p>, out: &'o mut [R]) -> Self {
+        assert_eq!(out.len(), place.len, "a region as long as its placement");
+        Region {
+            place,
+            out,
+            set: 0,
+            next: 0,
+        }
+    }
+
+    /// The index of field `name` in the table.
+    fn index(&self, name: &str) -> usize {
+        let fields = self.place.fields;
+        match fields.get(self.next) {
+            Some(f) if f.0 == name => self.next,
+            _ => fields
+                .iter()
+                .position(|f| f.0 == name)
+                .unwrap_or_else(|| panic!("no field {name} in the GPU layout")),
         }
     }
 
     /// Field `name` gets `values` (exactly as many as the table says).
     fn put(&mut self, name: &str, values: impl IntoIterator<Item = R>) {
-        let k = self
-            .fields
-            .iter()
-            .position(|f| f.0 == name)
-            .unwrap_or_else(|| panic!("no field {name} in the GPU layout"));
-        assert!(!self.set[k], "GPU layout field {name} packed twice");
-        let range = layout::range(self.fields, name, self.nb, self.nw);
+        let k = self.index(name);
+        assert!(
+            self.set & (1 << k) == 0,
+            "GPU layout field {name} packed twice"
+        );
+        let range = self.place.ranges[k].clone();
         let want = range.len();
         let mut n = 0;
-        for (slot, v) in self.values[range].iter_mut().zip(values) {
+        for (slot, v) in self.out[range].iter_mut().zip(values) {
             *slot = v;
             n += 1;
         }
         assert_eq!(n, want, "GPU layout field {name}: values packed");
-        self.set[k] = true;
+        self.set |= 1 << k;
+        self.next = k + 1;
     }
 
     /// Field `name` gets `values` (f64, rounded to the precision).
@@ -57,11 +173,34 @@ impl<'t, R: Real> Region<'t, R> {
         self.put(name, values.into_iter().map(R::of));
     }
 
-    fn finish(self) -> Vec<R> {
-        if let Some(k) = self.set.iter().position(|s| !s) {
-            panic!("GPU layout field {} not packed", self.fields[k].0);
+    /// Fields `a` and `b` get the firsts and the seconds of `pairs` (f64,
+    /// rounded to the precision): what is computed in pairs, once.
+    fn put64_pairs(&mut self, a: &str, b: &str, pairs: impl IntoIterator<Item = (f64, f64)>) {
+        let (ka, kb) = (self.index(a), self.index(b));
+        let (ra, rb) = (self.place.ranges[ka].clone(), self.place.ranges[kb].clone());
+        assert_eq!(ra.len(), rb.len(), "GPU layout fields {a} and {b}: lengths");
+        let mut n = 0;
+        for (i, (x, y)) in pairs.into_iter().take(ra.len()).enumerate() {
+            self.out[ra.start + i] = R::of(x);
+            self.out[rb.start + i] = R::of(y);
+            n += 1;
         }
-        self.values
+        assert_eq!(n, ra.len(), "GPU layout fields {a} and {b}: values packed");
+        for (k, name) in [(ka, a), (kb, b)] {
+            assert!(
+                self.set & (1 << k) == 0,
+                "GPU layout field {name} packed twice"
+            );
+            self.set |= 1 << k;
+        }
+        self.next = kb + 1;
+    }
+
+    fn finish(self) {
+        let fields = self.place.fields;
+        if let Some(k) = (0..fields.len()).find(|k| self.set & (1 << k) == 0) {
+            panic!("GPU layout field {} not packed", fields[k].0);
+        }
     }
 }
 
@@ -93,10 +232,17 @@ pub(super) fn header(
     }
 }
 
-/// A scene's parameters, laid out as `fields` (`layout::PARAMS`) says.
-pub(super) fn params<R: Real>(fields: &[Field], ch: &Chain, sp: &StepPlan, lim: &Limits) -> Vec<R> {
+/// A scene's parameters into `out`, laid out as `place` (of
+/// `layout::PARAMS` for the scene's shape) says.
+pub(super) fn params<R: Real>(
+    place: &Placement,
+    out: &mut [R],
+    ch: &Chain,
+    sp: &StepPlan,
+    lim: &Limits,
+) {
     let nb = ch.n_bodies();
-    let mut r = Region::<R>::new(fields, nb, sp.weights.len());
+    let mut r = Region::new(place, out);
     r.put64("h", [sp.h]);
     r.put(
         "v_floor",
@@ -126,24 +272,24 @@ pub(super) fn params<R: Real>(fields: &[Field], ch: &Chain, sp: &StepPlan, lim: 
     r.put64("k", ch.k.iter().copied());
     r.put64("inv_r", ch.r_min.iter().map(|r| 1.0 / r));
     r.put64("gap", ch.gap.iter().copied());
-    let imp: Vec<(f64, f64)> = (0..nb - 1).map(|c| ch.impact_coefficients(c)).collect();
-    r.put64("imp_t", imp.iter().map(|p| p.0));
-    r.put64("imp_d", imp.iter().map(|p| p.1));
-    let stiff: Vec<(f64, f64)> = (0..nb - 1)
-        .map(|c| ch.stiffness_coefficients(c, sp.omega_ref))
-        .collect();
-    r.put64("stiff_l", stiff.iter().map(|p| p.0));
-    r.put64("stiff_r", stiff.iter().map(|p| p.1));
+    let contacts = 0..nb - 1;
+    r.put64_pairs(
+        "imp_t",
+        "imp_d",
+        contacts.clone().map(|c| ch.impact_coefficients(c)),
+    );
+    let stiff = |c| ch.stiffness_coefficients(c, sp.omega_ref);
+    r.put64_pairs("stiff_l", "stiff_r", contacts.map(stiff));
     r.finish()
 }
 
 /// The state a scene starts from, exactly as the CPU integrator starts,
-/// laid out as `fields` (`layout::STATE`) says.
-pub(super) fn state<R: Real>(fields: &[Field], ch: &Chain, nw: usize) -> Vec<R> {
-    let nb = ch.n_bodies();
-    let mut r = Region::<R>::new(fields, nb, nw);
+/// into `out`, laid out as `place` (of `layout::STATE` for the scene's
+/// shape) says.
+pub(super) fn state<R: Real>(place: &Placement, out: &mut [R], ch: &Chain) {
+    let mut r = Region::new(place, out);
     r.put64("v", ch.v0.iter().copied());
-    r.put64("d", ch.initial_overlap());
+    r.put64("d", (0..ch.n_bodies() - 1).map(|c| ch.overlap0(c)));
     // compensations; χ and forces (every contact starts open)
     for zero in [
         "cv",
@@ -156,7 +302,7 @@ pub(super) fn state<R: Real>(fields: &[Field], ch: &Chain, nw: usize) -> Vec<R> 
         "cx0",
         "ct",
     ] {
-        let n = layout::range(fields, zero, nb, nw).len();
+        let n = place.ranges[r.index(zero)].len();
         r.put(zero, std::iter::repeat_n(R::zero(), n));
     }
     // −1: no contact yet, none released
@@ -200,16 +346,6 @@ pub(super) fn run<R: Real>(ch: &Chain, h: &GpuHeader, i: usize, words: &[u32], r
         max_overlap: at("max_overlap"),
         max_overlap_ratio: at("max_ratio"),
     }
-}
-
-/// The parameters of `ch` in the layout the shader reads (`PARAMS`).
-pub(super) fn scene_params<R: Real>(ch: &Chain, sp: &StepPlan, lim: &Limits) -> Vec<R> {
-    params(PARAMS, ch, sp, lim)
-}
-
-/// The state `ch` starts from in the layout the shader reads (`STATE`).
-pub(super) fn scene_state<R: Real>(ch: &Chain, nw: usize) -> Vec<R> {
-    state(STATE, ch, nw)
 }
 
 #[cfg(test)]
@@ -256,11 +392,14 @@ mod tests {
         let (nb, nw) = (ch.n_bodies(), sp.weights.len());
         for table in [PARAMS, STATE] {
             let pack = |fields: &[Field]| -> Vec<f64> {
+                let place = Placement::new(fields, nb, nw);
+                let mut out = vec![f64::NAN; place.len()];
                 if table == PARAMS {
-                    params::<f64>(fields, &ch, &sp, &lim)
+                    params::<f64>(&place, &mut out, &ch, &sp, &lim)
                 } else {
-                    state::<f64>(fields, &ch, nw)
+                    state::<f64>(&place, &mut out, &ch)
                 }
+                out
             };
             let want = by_name(table, &pack(table), nb, nw);
             let mut sorted = want.clone();
@@ -276,7 +415,10 @@ mod tests {
             }
         }
         // And the values are the scene's: spot checks by name.
-        let p = by_name(PARAMS, &params::<f64>(PARAMS, &ch, &sp, &lim), nb, nw);
+        let place = Placement::new(PARAMS, nb, nw);
+        let mut packed = vec![f64::NAN; place.len()];
+        params::<f64>(&place, &mut packed, &ch, &sp, &lim);
+        let p = by_name(PARAMS, &packed, nb, nw);
         let get = |n: &str| p.iter().find(|f| f.0 == n).expect(n).1.clone();
         assert_eq!(get("h"), vec![sp.h]);
         assert_eq!(get("inv_l"), vec![1.0 / ch.length]);
@@ -288,10 +430,69 @@ mod tests {
         );
     }
 
+    /// A batch of scenes of several shapes (3 to 5 balls, methods of 1 to
+    /// 9 substeps; two of one shape that differ), long enough to be packed in parallel: each scene's
+    /// regions, where its header says they start, hold what packing it
+    /// alone gives, and the regions tile the buffers.
+    #[test]
+    fn a_batch_packs_each_scene_where_its_header_says() {
+        let cases: Vec<(Chain, Solver)> = [
+            (3, "verlet"),
+            (4, "yoshida4"),
+            (5, "kahanli6"),
+            (5, "kahanli6"),
+        ]
+        .iter()
+        .enumerate()
+        .map(|(k, (n, method))| {
+            let mut v = vec!["0.0".to_string(); *n];
+            v[0] = format!("{}", 0.5 + 0.1 * k as f64);
+            let v = format!("[{}]", v.join(", "));
+            let text = format!(
+                "balls = {n}\nradius = 0.01\ndensity = 7850.0\nyoung_modulus = 200e9\npoisson_ratio = 0.3\n\
+                 gap = 1e-5\nvelocity = {v}\n[solver]\nmethod = \"{method}\"\n"
+            );
+            let scene = Scene::from_toml_str("batch.toml", &text).expect("scene");
+            let ch = Chain::from_scene(&scene).expect("chain");
+            (ch, Solver::resolve(&scene, &Overrides::default()).expect("solver"))
+        })
+        .collect();
+        let jobs: Vec<(&Chain, &Solver)> = (0..1500)
+            .map(|i| {
+                let (ch, s) = &cases[(i * 7) % cases.len()];
+                (ch, s)
+            })
+            .collect();
+        let b = batch::<f64>(&jobs);
+        let (mut p_end, mut s_end) = (0, 0);
+        for (h, (ch, solver)) in b.headers.iter().zip(&jobs) {
+            let (sp, lim) = plan(ch, solver);
+            let sp = sp.expect("a step");
+            let (nb, nw) = (ch.n_bodies(), sp.weights.len());
+            assert_eq!((h.nb as usize, h.n_weights as usize), (nb, nw));
+            let (pp, ps) = (
+                Placement::new(PARAMS, nb, nw),
+                Placement::new(STATE, nb, nw),
+            );
+            let (mut want_p, mut want_s) = (vec![0.0; pp.len()], vec![0.0; ps.len()]);
+            params(&pp, &mut want_p, ch, &sp, &lim);
+            state(&ps, &mut want_s, ch);
+            let (i, o) = (h.input as usize, h.output as usize);
+            assert_eq!((i, o), (p_end, s_end), "regions follow one another");
+            assert_eq!(b.params[i..i + pp.len()], want_p[..]);
+            assert_eq!(b.state[o..o + ps.len()], want_s[..]);
+            (p_end, s_end) = (i + pp.len(), o + ps.len());
+        }
+        assert_eq!((b.params.len(), b.state.len()), (p_end, s_end));
+        assert_eq!(b.dts.len(), jobs.len());
+    }
+
     #[test]
     #[should_panic(expected = "not packed")]
     fn a_field_left_out_is_caught() {
-        let mut r = Region::<f64>::new(PARAMS, 3, 1);
+        let place = Placement::new(PARAMS, 3, 1);
+        let mut out = vec![0.0; place.len()];
+        let mut r = Region::<f64>::new(&place, &mut out);
         r.put64("h", [1.0]);
         r.finish();
     }
