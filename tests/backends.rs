@@ -1155,6 +1155,47 @@ fn gpu_sweep_with_concurrent_calls_writes_the_cpu_bytes() {
     assert!(st.rounds >= 20 && st.dispatches >= 4 * st.rounds, "{st:?}");
 }
 
+/// With calls at once (the hardware profile), a batch is packed and
+/// unpacked on a group's own thread while every thread of rayon's global
+/// pool may be a sweep lane blocked at a gate: the backend must not need
+/// that pool. Here every global thread is held until the batch is done (or
+/// 300 s have passed, then freed so that nothing stays hung): 1,200 scenes
+/// in several size classes, the CPU's outcomes bit for bit.
+#[test]
+fn gpu_batches_need_no_thread_of_the_global_pool() {
+    use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering::SeqCst};
+    let Some(_) = gpu() else { return };
+    let hw = gpu_with(Profile {
+        batch: 512,
+        ..Profile::HARDWARE
+    });
+    let jobs = batch(Precision::F64);
+    let want = Cpu.run(&jobs).unwrap();
+    let (held, release) = (AtomicUsize::new(0), AtomicBool::new(false));
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::scope(|s| {
+        s.spawn(|| {
+            rayon::broadcast(|_| {
+                held.fetch_add(1, SeqCst);
+                while !release.load(SeqCst) {
+                    std::thread::sleep(std::time::Duration::from_millis(1));
+                }
+            })
+        });
+        while held.load(SeqCst) < rayon::current_num_threads() {
+            std::thread::sleep(std::time::Duration::from_millis(1));
+        }
+        let (hw, jobs) = (&hw, &jobs);
+        s.spawn(move || tx.send(hw.run(jobs)));
+        let got = rx.recv_timeout(std::time::Duration::from_secs(300));
+        release.store(true, SeqCst);
+        let got = got.expect("the batch ended while the global pool was busy");
+        for (i, (c, g)) in want.iter().zip(&got.unwrap()).enumerate() {
+            assert_same(c, g, &format!("scene {i}"));
+        }
+    });
+}
+
 /// A sweep asks for its pipelines before its first scene (`Backend::prepare`):
 /// the set it names (size classes from the fewest to the most bodies, with
 /// and without the dissipative terms as the axes need) is what the run then

@@ -117,6 +117,13 @@ pub struct Gpu {
     /// Batches on the device now: at most `profile.calls` (more calls than
     /// that are admitted, `host_ahead` of them planning, packing or unpacking).
     on_device: crate::backend::Gate,
+    /// The threads that pack and unpack a batch's scenes in parallel: a
+    /// pool of the backend's own, not rayon's global one. With calls at
+    /// once a batch is packed on a group's thread, outside any pool, while
+    /// every thread of the global pool may be a sweep lane blocked at a
+    /// gate (waiting for a turn, or for its own groups): work sent there
+    /// would wait for ever. These threads wait on nothing.
+    host: rayon::ThreadPool,
 }
 
 impl Gpu {
@@ -185,6 +192,11 @@ impl Gpu {
             wg_invocations,
             chain_pipes: Mutex::new(HashMap::new()),
             on_device: crate::backend::Gate::new(profile.calls),
+            host: rayon::ThreadPoolBuilder::new()
+                .num_threads(std::thread::available_parallelism().map_or(1, |n| n.get()))
+                .thread_name(|i| format!("cradle-gpu-host-{i}"))
+                .build()
+                .context("cannot start the GPU backend's packing threads")?,
         };
         Ok(gpu)
     }
@@ -264,7 +276,7 @@ impl Gpu {
             dts,
             params,
             state,
-        } = pack::batch::<R>(jobs);
+        } = self.host.install(|| pack::batch::<R>(jobs));
         let t1 = std::time::Instant::now();
         let (words, reals) = {
             let _turn = self.on_device.enter();
@@ -274,14 +286,16 @@ impl Gpu {
             self.integrate::<R>(pipe, jobs, &headers, params, state, wide)?
         };
         let t3 = std::time::Instant::now();
-        let runs = headers
-            .par_iter()
-            .zip(jobs)
-            .zip(dts)
-            .enumerate()
-            .with_min_len(256)
-            .map(|(i, ((h, (ch, _)), dt))| (pack::run(ch, h, i, &words, &reals), dt))
-            .collect();
+        let runs = self.host.install(|| {
+            headers
+                .par_iter()
+                .zip(jobs)
+                .zip(dts)
+                .enumerate()
+                .with_min_len(256)
+                .map(|(i, ((h, (ch, _)), dt))| (pack::run(ch, h, i, &words, &reals), dt))
+                .collect()
+        });
         self.stats.host(0.0, t3.elapsed().as_secs_f64(), 0.0);
         Ok(runs)
     }

@@ -28,7 +28,8 @@ pub(super) struct Batch<R> {
 
 /// Plan and pack `jobs`: planned in order (each scene's regions start where
 /// the one before it ends; a [`Placement`] per shape, resolved once), then
-/// packed in parallel on the rayon pool, straight into the batch's buffers.
+/// packed in parallel, straight into the batch's buffers, on the current
+/// rayon pool (the GPU backend's own, `Gpu::host`).
 pub(super) fn batch<R: Real>(jobs: &[(&Chain, &Solver)]) -> Batch<R> {
     type Shape = ((usize, usize), Placement<'static>, Placement<'static>);
     let mut shapes: Vec<Shape> = Vec::new();
