@@ -105,7 +105,7 @@ pub fn num_into(x: f64, s: &mut String) {
     }
     // The text, laid out in bytes here and pushed once: at most a sign,
     // "0." and 3 zeros (|x| ≥ 1e-3), 17 digits, 7 zeros (|x| < 1e7) or an
-    // exponent of 4 characters.
+    // exponent of 5 characters ("e-324").
     let mut out = [0u8; 40];
     let mut len = 0;
     let mut push = |bytes: &[u8]| {
@@ -135,24 +135,7 @@ pub fn num_into(x: f64, s: &mut String) {
             push(&digits[1..n]);
         }
         push(b"e");
-        let e = point - 1;
-        if e < 0 {
-            push(b"-");
-        }
-        let e = e.unsigned_abs();
-        let d = [
-            b'0' + (e / 100) as u8,
-            b'0' + (e / 10 % 10) as u8,
-            b'0' + (e % 10) as u8,
-        ];
-        let skip = if e >= 100 {
-            0
-        } else if e >= 10 {
-            1
-        } else {
-            2
-        };
-        push(&d[skip..]);
+        push(itoa::Buffer::new().format(point - 1).as_bytes());
     }
     s.push_str(std::str::from_utf8(&out[..len]).expect("ASCII digits"));
 }

@@ -150,13 +150,19 @@ impl<'p, 'o, R: Real> Region<'p, 'o, R> {
         }
     }
 
-    /// Field `name` gets `values` (exactly as many as the table says).
-    fn put(&mut self, name: &str, values: impl IntoIterator<Item = R>) {
-        let k = self.index(name);
+    /// Field `k` (`name`) is set now, once: the next look starts after it.
+    fn claim(&mut self, k: usize, name: &str) {
         assert!(
             self.set & (1 << k) == 0,
             "GPU layout field {name} packed twice"
         );
+        self.set |= 1 << k;
+        self.next = k + 1;
+    }
+
+    /// Field `name` gets `values` (exactly as many as the table says).
+    fn put(&mut self, name: &str, values: impl IntoIterator<Item = R>) {
+        let k = self.index(name);
         let range = self.place.ranges[k].clone();
         let want = range.len();
         let mut n = 0;
@@ -165,8 +171,14 @@ impl<'p, 'o, R: Real> Region<'p, 'o, R> {
             n += 1;
         }
         assert_eq!(n, want, "GPU layout field {name}: values packed");
-        self.set |= 1 << k;
-        self.next = k + 1;
+        self.claim(k, name);
+    }
+
+    /// Every value of field `name` is `x`.
+    fn fill(&mut self, name: &str, x: R) {
+        let k = self.index(name);
+        self.out[self.place.ranges[k].clone()].fill(x);
+        self.claim(k, name);
     }
 
     /// Field `name` gets `values` (f64, rounded to the precision).
@@ -187,14 +199,8 @@ impl<'p, 'o, R: Real> Region<'p, 'o, R> {
             n += 1;
         }
         assert_eq!(n, ra.len(), "GPU layout fields {a} and {b}: values packed");
-        for (k, name) in [(ka, a), (kb, b)] {
-            assert!(
-                self.set & (1 << k) == 0,
-                "GPU layout field {name} packed twice"
-            );
-            self.set |= 1 << k;
-        }
-        self.next = kb + 1;
+        self.claim(ka, a);
+        self.claim(kb, b);
     }
 
     fn finish(self) {
@@ -303,8 +309,7 @@ pub(super) fn state<R: Real>(place: &Placement, out: &mut [R], ch: &Chain) {
         "cx0",
         "ct",
     ] {
-        let n = place.ranges[r.index(zero)].len();
-        r.put(zero, std::iter::repeat_n(R::zero(), n));
+        r.fill(zero, R::zero());
     }
     // −1: no contact yet, none released
     r.put64("t_first", [-1.0]);
