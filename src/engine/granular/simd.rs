@@ -170,11 +170,20 @@ pub(super) unsafe fn dashpots<const BACK: bool, const HC: bool>(
             let below =
                 _mm256_cmp_pd::<_CMP_LT_OQ>(hc, _mm256_mul_pd(_mm256_mul_pd(ce, speed), margin));
             let renew = _mm256_and_pd(act, _mm256_or_pd(zc, _mm256_and_pd(closing, below)));
-            let x = _mm256_div_pd(hc, speed);
-            let lower = _mm256_and_pd(closing, _mm256_cmp_pd::<_CMP_LT_OQ>(x, ce));
-            let set = _mm256_and_pd(renew, _mm256_or_pd(zc, lower));
-            let ce = _mm256_blendv_pd(ce, x, set);
-            put(chi, ce, co);
+            // Most chunks renew no χ (a contact's closing speed grows for
+            // a few steps as its wave comes, then falls): the division
+            // only where one may, as `dashpot` does (a branch, rarely
+            // taken).
+            let ce = if _mm256_movemask_pd(renew) == 0 {
+                ce
+            } else {
+                let x = _mm256_div_pd(hc, speed);
+                let lower = _mm256_and_pd(closing, _mm256_cmp_pd::<_CMP_LT_OQ>(x, ce));
+                let set = _mm256_and_pd(renew, _mm256_or_pd(zc, lower));
+                let ce = _mm256_blendv_pd(ce, x, set);
+                put(chi, ce, co);
+                ce
+            };
             beta = _mm256_add_pd(beta, _mm256_mul_pd(_mm256_mul_pd(ce, spring), inv_mu));
         }
         let x = _mm256_mul_pd(beta, t);

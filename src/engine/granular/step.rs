@@ -80,8 +80,11 @@ pub struct Scratch<R> {
     /// (N·s; damped chains only): the closing correction replaces it.
     pub dimp: Vec<R>,
     /// The springs k·δ^{3/2} of a damping substep's even contacts, which
-    /// its two half-sweeps of them share (their overlaps are frozen; the
-    /// vector sweep only, `engine::granular::simd`; damped chains only).
+    /// its two half-sweeps of them share (their overlaps are frozen); with
+    /// the damping at the ends, every contact's at the step's end, which
+    /// its last substep's forces keep for the sweeps at the step's end and
+    /// the next one's start (the vector sweep only,
+    /// `engine::granular::simd`; damped chains only).
     pub spring: Vec<R>,
 }
 
@@ -176,7 +179,10 @@ impl<R: Real> State<R> {
                     .collect();
             }
         }
-        forces(c, &mut s, zero, pulse_on(c, zero), None);
+        // Every contact's spring, for a damping at the ends' first sweeps
+        // ([`damp_end`]: from then on each step's last substep keeps them).
+        let keep = c.damp.as_ref().is_some_and(dashpots);
+        forces(c, &mut s, zero, pulse_on(c, zero), None, keep);
         if !whole {
             // (Whichever the damping's split: its first step's window
             // reaches as far as either.)
@@ -270,16 +276,36 @@ pub fn pulse_on<R: Real>(c: &Consts<R>, t0: R) -> bool {
 /// Excess forces of contacts lo ..= hi and accelerations of beads lo .. hi
 /// at time `t` (the pulse's phase; `on`: [`pulse_on`] of the step);
 /// `track`: the weight of the kick that follows, each contact's impulse
-/// (`scratch.imp`) then adds weight·e_j.
+/// (`scratch.imp`) then adds weight·e_j; `keep`: each contact's spring
+/// k·δ^{3/2} also kept in `scratch.spring` (the last substep's, for the
+/// damping at the step's end, [`damp_end`]).
 #[inline(always)]
-fn forces<R: Real>(c: &Consts<R>, s: &mut State<R>, t: R, on: bool, track: Option<R>) {
+fn forces<R: Real>(c: &Consts<R>, s: &mut State<R>, t: R, on: bool, track: Option<R>, keep: bool) {
     let (lo, hi) = (s.lo, s.hi);
     let e = &mut s.e[lo..=hi];
     let (k, d0, f0, p) = (&c.k[lo..=hi], &c.d0[lo..=hi], &c.f0[lo..=hi], &s.p[lo..=hi]);
     match track {
+        None if keep => {
+            let sp = &mut s.scratch.spring[lo..=hi];
+            for j in 0..e.len() {
+                let x = hertz(k[j], d0[j] + p[j]);
+                sp[j] = x;
+                e[j] = x - f0[j];
+            }
+        }
         None => {
             for j in 0..e.len() {
                 e[j] = hertz(k[j], d0[j] + p[j]) - f0[j];
+            }
+        }
+        Some(kc) if keep => {
+            let (imp, sp) = (&mut s.scratch.imp[lo..=hi], &mut s.scratch.spring[lo..=hi]);
+            for j in 0..e.len() {
+                let x = hertz(k[j], d0[j] + p[j]);
+                sp[j] = x;
+                let x = x - f0[j];
+                e[j] = x;
+                imp[j] = imp[j] + kc * x;
             }
         }
         Some(kc) => {
@@ -667,7 +693,10 @@ fn step_portable<R: Real>(c: &Consts<R>, s: &mut State<R>, t0: R, h: R, m: &Subs
         }
         t = t + wj * h;
         let k = kick_weight(w, j, h);
-        forces(c, s, t, on, refine.map(|_| k));
+        // The last substep's springs are the damping's at the step's end
+        // and at the next one's start.
+        let keep = ends.is_some_and(dashpots) && j + 1 == w.len();
+        forces(c, s, t, on, refine.map(|_| k), keep);
         if piston {
             s.wall_imp = s.wall_imp + k * wall(s);
         }
@@ -745,7 +774,7 @@ fn step_portable<R: Real>(c: &Consts<R>, s: &mut State<R>, t0: R, h: R, m: &Subs
 fn damp<R: Real>(c: &Consts<R>, d: &super::DampConsts<R>, s: &mut State<R>, tau: R) {
     let zero = R::zero();
     let half = R::of(0.5) * tau;
-    if d.gamma != zero || d.hc != zero {
+    if dashpots(d) {
         // The even contacts' second half-sweep reads the springs the
         // first one kept.
         use Springs::{Keep, Reuse, Take};
@@ -785,17 +814,31 @@ fn damp_end<R: Real, const FIRST: bool>(
     if FIRST && d.drag != zero {
         drag(d, s, t);
     }
-    if d.gamma != zero || d.hc != zero {
+    if dashpots(d) {
         let even = s.lo + s.lo % 2;
         let odd = s.lo + (s.lo + 1) % 2;
         let order = if FIRST { [even, odd] } else { [odd, even] };
+        // The springs at these positions are kept: by this step's last
+        // substep at its end, by the last step's at its start (or by
+        // [`State::start`]'s forces at the first). A contact's overlap
+        // changes only in a step's window, and the step's last substep
+        // keeps the springs of its whole window ([`forces`]'s `keep`; the
+        // local refinement, which would move overlaps after it, never
+        // runs on a damped chain).
         for first in order {
-            sweep::<R, false>(c, d, s, first, t, Springs::Take);
+            sweep::<R, false>(c, d, s, first, t, Springs::Reuse);
         }
     }
     if !FIRST && d.drag != zero {
         drag(d, s, t);
     }
+}
+
+/// Whether a damping has dashpots (a viscosity or Hunt–Crossley contacts):
+/// sweeps of the contacts, not only the air drag.
+#[inline(always)]
+fn dashpots<R: Real>(d: &super::DampConsts<R>) -> bool {
+    d.gamma != R::zero() || d.hc != R::zero()
 }
 
 /// The air drag for `t` ([`damp_end`]): every moving bead's velocity times
@@ -847,7 +890,7 @@ fn vector_sweeps<R: Real>() -> bool {
 /// What a sweep does with its contacts' springs (the vector sweep only,
 /// [`super::simd`]): computes them, computes and keeps them
 /// (`Scratch::spring`), or reads the ones a sweep of the same contacts at
-/// the same overlaps kept.
+/// the same overlaps kept (or the forces, [`damp_end`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(super) enum Springs {
     Take,
@@ -1307,6 +1350,9 @@ fn redo<R: Real>(
     mm: usize,
     (a, b): (usize, usize),
 ) {
+    // (A damped chain's springs kept for its next step would be stale
+    // after a redo: `Beads::refinable`.)
+    debug_assert!(c.damp.is_none());
     let n = s.v.len();
     let (lo, hi) = (s.lo, s.hi);
     let zero = R::zero();
