@@ -173,9 +173,11 @@ pub struct Solver {
     pub max_time: f64,
     /// Multiplies every step (1; 2 for the coarse run of an error estimate).
     pub step_factor: f64,
-    /// A damped chain's damping at the steps' ends, not in every substep
-    /// (`[solver] damping_split = "ends"`; docs/SPEC.md §9, "Damping").
-    pub damping_ends: bool,
+    /// A damped chain's damping at the steps' ends (`Some(true)`,
+    /// `[solver] damping_split = "ends"`), in every substep (`Some(false)`,
+    /// "substeps"), or chosen per chain (`None`, "auto", the default:
+    /// [`crate::engine::granular::ENDS_BELOW`]; docs/SPEC.md §9, "Damping").
+    pub damping_ends: Option<bool>,
 }
 
 impl Solver {
@@ -222,7 +224,7 @@ impl Solver {
             max_steps: scene.max_steps.unwrap_or(DEFAULT_MAX_STEPS),
             max_time: scene.duration.unwrap_or(DEFAULT_MAX_TIME),
             step_factor: 1.0,
-            damping_ends: scene.solver.damping_ends.unwrap_or(false),
+            damping_ends: scene.solver.damping_ends,
         })
     }
 

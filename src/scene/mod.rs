@@ -143,9 +143,9 @@ pub struct SolverChoice {
     pub dt: Option<f64>,
     pub tolerance: Option<f64>,
     pub precision: Option<Precision>,
-    /// `damping_split = "ends"`: a damped chain's damping once a step, at
-    /// its ends (`Some(true)`), not in every substep (`Some(false)`, the
-    /// default).
+    /// `damping_split`: a damped chain's damping once a step, at its ends
+    /// (`Some(true)`, "ends"), in every substep (`Some(false)`,
+    /// "substeps"), or chosen per chain (`None`, "auto", the default).
     pub damping_ends: Option<bool>,
 }
 

@@ -118,8 +118,9 @@ pub struct StopSpec {
 
 /// `[solver]`: method, and either a fixed `dt` (s) or a `tolerance` on the
 /// outcome velocities relative to v_in; `precision` = "f32" | "f64" | "df64";
-/// `damping_split` = "substeps" | "ends" (a damped chain's damping in every
-/// substep or once a step at its ends; docs/SPEC.md §9, "Damping").
+/// `damping_split` = "auto" | "substeps" | "ends" (a damped chain's damping
+/// chosen per chain, in every substep, or once a step at its ends;
+/// docs/SPEC.md §9, "Damping").
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SolverSpec {

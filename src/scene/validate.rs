@@ -401,13 +401,14 @@ impl SceneSpec {
                     "a granular chain's key (where its dashpots and air drag go in a step); a cradle's damping has no split",
                 ))
             }
+            Some("auto") => None,
             Some("substeps") => Some(false),
             Some("ends") => Some(true),
             Some(x) => {
                 return Err(c.err(
                     "solver.damping_split",
                     format!("{x:?}"),
-                    "\"substeps\" or \"ends\"",
+                    "\"auto\", \"substeps\" or \"ends\"",
                 ))
             }
         };

@@ -939,7 +939,7 @@ fn damping_keeps_the_methods_orders() {
         format!(
             "balls = 24\nradius = 0.005\nvelocity = [0.001, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0]\n\
              [walls]\nleft = true\nright = true\nprecompression = 20.0\n[probes]\nbeads = [5, 18]\n\
-             [damping]\nviscosity = 3.0\nair_drag = 30.0\n[solver]\nmethod = \"{m}\"\ndt = {dt:e}\n[stop]\nduration = 2e-4\n"
+             [damping]\nviscosity = 3.0\nair_drag = 30.0\n[solver]\nmethod = \"{m}\"\ndt = {dt:e}\ndamping_split = \"substeps\"\n[stop]\nduration = 2e-4\n"
         )
     };
     let (_, b) = chain(&text(1e-8, "verlet"));
@@ -1101,14 +1101,16 @@ fn a_piston_needs_a_left_wall_a_speed_and_an_end() {
     }
 }
 
-/// `[solver] damping_split` is "substeps" or "ends", on chains only; the
-/// plan follows it only where there is damping to split.
+/// `[solver] damping_split` is "auto" (the default), "substeps" or "ends",
+/// on chains only; the plan follows it only where there is damping to
+/// split, and "auto" puts the damping at the ends where it is weak on the
+/// chain's time scale (`granular::ENDS_BELOW`).
 #[test]
-fn the_damping_split_is_a_chains_choice_of_two() {
+fn the_damping_split_is_a_chains_choice_of_three() {
     for (text, says) in [
         (
             "balls = 100\n[launch]\nballs = 1\nvelocity = 0.1\n[damping]\nviscosity = 1.0\n[solver]\ndamping_split = \"middle\"",
-            "\"substeps\" or \"ends\"",
+            "\"auto\", \"substeps\" or \"ends\"",
         ),
         (
             "balls = 5\n[launch]\nballs = 1\nheight = 0.01\n[damping]\nrestitution = 0.9\n[solver]\ndamping_split = \"ends\"",
@@ -1117,20 +1119,47 @@ fn the_damping_split_is_a_chains_choice_of_two() {
     ] {
         assert_refused(text, "solver.damping_split", says);
     }
-    let ends = |text: &str| {
+    let plan = |text: &str| {
         let (s, b) = chain(text);
         let solver = Solver::resolve(&s, &Overrides::default()).unwrap();
-        granular::plan(&b, &solver, None).damping_ends
+        (
+            granular::plan(&b, &solver, None).damping_ends,
+            b.damping_strength(),
+        )
     };
-    let split = "[solver]\ndamping_split = \"ends\"\n";
-    assert!(ends(&struck(
+    let ends = |text: &str| plan(text).0;
+    let split = |x: &str| format!("[solver]\ndamping_split = \"{x}\"\n");
+    let drag = "[damping]\nair_drag = 1.0\n";
+    assert!(ends(&struck(100, 0.1, &format!("{drag}{}", split("ends")))));
+    assert!(!ends(&struck(
         100,
         0.1,
-        &format!("[damping]\nair_drag = 1.0\n{split}")
+        &format!("{drag}{}", split("substeps"))
     )));
-    assert!(!ends(&struck(100, 0.1, "[damping]\nair_drag = 1.0\n")));
     // Nothing to split: an undamped chain's plan is the same as without it.
-    assert!(!ends(&struck(100, 0.1, split)));
+    assert!(!ends(&struck(100, 0.1, &split("ends"))));
+    // "auto": weak damping at the ends, strong in the substeps, "auto"
+    // itself the default.
+    for (damping, strong) in [
+        // A drag of 1/s against a contact time of ~50 µs.
+        (drag, false),
+        // Dashpots of 0.5 N·s/m on 4 g beads: 2γ/m ≈ 240/s.
+        ("[damping]\nviscosity = 0.5\n", false),
+        ("[damping]\nrestitution = 0.9\n", false),
+        // Dashpots of 50 N·s/m: 2γ/m ≈ 24,000/s, faster than the contact.
+        ("[damping]\nviscosity = 50.0\n", true),
+        ("[damping]\nrestitution = 0.5\n", true),
+    ] {
+        let (default, strength) = plan(&struck(100, 0.1, damping));
+        assert_eq!(default, !strong, "{damping}: strength {strength}");
+        assert_eq!(
+            strength >= granular::ENDS_BELOW,
+            strong,
+            "{damping}: {strength}"
+        );
+        let auto = ends(&struck(100, 0.1, &format!("{damping}{}", split("auto"))));
+        assert_eq!(auto, default, "{damping}");
+    }
 }
 
 /// Band gap of a precompressed dimer (issue #45; Boechler et al. 2010):

@@ -38,6 +38,17 @@ use crate::scene::{Precision, Pulse, Record, Scene};
 pub use observe::{ChainOutcome, ProbeOutcome, WallOutcome};
 pub use run::{run, NoRows, Rows};
 
+/// `damping_split = "auto"` (the default) puts a damped chain's damping at
+/// the steps' ends when its [`Beads::damping_strength`] is below this, in
+/// every substep otherwise (docs/SPEC.md §9, "Damping"). At the ends a
+/// step costs 1.0–1.6× the undamped one against 2–5× in the substeps, but
+/// its splitting errs ∝ γ·h²: where the damping sets the pace the error
+/// control then takes many more steps (a piston into dashpots of strength
+/// 1.9: 21× the steps). The chains of results/chains.md whose ends were
+/// cheaper are at strengths 0.003–0.11; the one where they were not, at
+/// 1.9.
+pub const ENDS_BELOW: f64 = 0.25;
+
 /// The run length (in time scales t_s) of the chain the step rule was
 /// fitted on ([`chain_error_model`]): shorter runs are stepped as if this
 /// long (their kink errors do not shrink with the run).
@@ -369,11 +380,48 @@ impl Beads {
         1.5 * self.k[j] * self.d0[j].max(0.0).sqrt()
     }
 
-    /// The shortest time scale of the run (s): the two-body contact time of
-    /// the stiffest, lightest contact at the velocity scale; under
-    /// precompression also 1/ω_max of the linearised chain (Gershgorin:
-    /// ω² ≤ max_i (K_i + K_{i+1})·2/m_i); with a pulse also τ/π.
+    /// The shortest time scale of the run (s): [`Beads::elastic_time_scale`],
+    /// or the damping's if shorter.
     pub fn time_scale(&self) -> f64 {
+        let t = self.elastic_time_scale();
+        // Damping: the fastest decay of a contact's relative velocity,
+        // γ·(1/m_a + 1/m_b) ≤ 2γ/m_min, and the air drag's rate.
+        if self.viscosity > 0.0 || self.air_drag > 0.0 {
+            t.min(1.0 / self.damping_rate())
+        } else {
+            t
+        }
+    }
+
+    /// The fastest decay rate of the dashpots and the air drag (1/s):
+    /// 2γ/m_min (a contact's relative velocity decays at γ·(1/m_a + 1/m_b))
+    /// or the drag's c.
+    fn damping_rate(&self) -> f64 {
+        let m_min = self.mass.iter().fold(f64::INFINITY, |m, &x| m.min(x));
+        (2.0 * self.viscosity / m_min).max(self.air_drag)
+    }
+
+    /// How strong the damping is on the chain's own time scale
+    /// ([`Beads::elastic_time_scale`] t_s): the dashpots' and the drag's
+    /// fastest rate times t_s, and Hunt–Crossley's 1 − e (the fraction of
+    /// its closing speed a contact loses over its duration, at least t_s);
+    /// 0 without damping. `damping_split = "auto"` puts the damping at the
+    /// steps' ends below [`ENDS_BELOW`] (docs/SPEC.md §9, "Damping").
+    pub fn damping_strength(&self) -> f64 {
+        let rate = if self.viscosity > 0.0 || self.air_drag > 0.0 {
+            self.damping_rate() * self.elastic_time_scale()
+        } else {
+            0.0
+        };
+        rate.max(1.0 - self.restitution.min(1.0))
+    }
+
+    /// The shortest time scale of the conservative chain (s): the two-body
+    /// contact time of the stiffest, lightest contact at the velocity
+    /// scale; under precompression also 1/ω_max of the linearised chain
+    /// (Gershgorin: ω² ≤ max_i (K_i + K_{i+1})·2/m_i); with a pulse also
+    /// τ/π.
+    pub fn elastic_time_scale(&self) -> f64 {
         let v = self.v_scale();
         let mut t = f64::INFINITY;
         for j in 0..=self.n {
@@ -404,12 +452,6 @@ impl Beads {
             } else {
                 p.duration / std::f64::consts::PI
             });
-        }
-        // Damping: the fastest decay of a contact's relative velocity,
-        // γ·(1/m_a + 1/m_b) ≤ 2γ/m_min, and the air drag's rate.
-        if self.viscosity > 0.0 || self.air_drag > 0.0 {
-            let m_min = self.mass.iter().fold(f64::INFINITY, |m, &x| m.min(x));
-            t = t.min(1.0 / (2.0 * self.viscosity / m_min).max(self.air_drag));
         }
         t
     }
@@ -682,7 +724,10 @@ pub fn plan(beads: &Beads, solver: &Solver, every: Option<f64>) -> Plan {
         every,
         precision: solver.precision,
         tolerance,
-        damping_ends: solver.damping_ends && beads.damped(),
+        damping_ends: beads.damped()
+            && solver
+                .damping_ends
+                .unwrap_or_else(|| beads.damping_strength() < ENDS_BELOW),
         stop: crate::engine::Stop::default(),
         tally: crate::engine::Tally::default(),
     };
