@@ -633,6 +633,31 @@ fn kick_weight<R: Real>(w: &[f64], j: usize, h: R) -> R {
     }
 }
 
+/// What a step keeps of its start in `scratch`: the overlaps (for the kink
+/// correction, `kicks`, and the damping's closings), the dashpots'
+/// impulses zeroed, and for the local refinement (`refine`) the
+/// velocities, accelerations, bead 0's position and each contact's impulse
+/// of the first kick (weight `c0`).
+#[inline(always)]
+fn keep_start<R: Real>(c: &Consts<R>, s: &mut State<R>, kicks: bool, refine: bool, c0: R) {
+    let (lo, hi) = (s.lo, s.hi);
+    if kicks || c.damp.is_some() {
+        s.scratch.p[lo..=hi].copy_from_slice(&s.p[lo..=hi]);
+    }
+    if c.damp.is_some() {
+        s.scratch.dimp[lo..=hi].fill(R::zero());
+    }
+    if refine {
+        let sc = &mut s.scratch;
+        sc.v[lo..hi].copy_from_slice(&s.v[lo..hi]);
+        sc.a[lo..hi].copy_from_slice(&s.a[lo..hi]);
+        sc.x0 = s.x0;
+        for (i, &e) in sc.imp[lo..=hi].iter_mut().zip(&s.e[lo..=hi]) {
+            *i = c0 * e;
+        }
+    }
+}
+
 #[inline(always)]
 fn step_portable<R: Real>(c: &Consts<R>, s: &mut State<R>, t0: R, h: R, m: &Substeps, whole: bool) {
     let w = m.weights;
@@ -642,21 +667,7 @@ fn step_portable<R: Real>(c: &Consts<R>, s: &mut State<R>, t0: R, h: R, m: &Subs
     let refine = m.refine.filter(|_| m.kicks.is_some());
     let (lo, hi) = (s.lo, s.hi);
     let c0 = half * R::of(w[0]) * h;
-    if m.kicks.is_some() || c.damp.is_some() {
-        s.scratch.p[lo..=hi].copy_from_slice(&s.p[lo..=hi]);
-    }
-    if c.damp.is_some() {
-        s.scratch.dimp[lo..=hi].fill(R::zero());
-    }
-    if refine.is_some() {
-        let sc = &mut s.scratch;
-        sc.v[lo..hi].copy_from_slice(&s.v[lo..hi]);
-        sc.a[lo..hi].copy_from_slice(&s.a[lo..hi]);
-        sc.x0 = s.x0;
-        for (i, &e) in sc.imp[lo..=hi].iter_mut().zip(&s.e[lo..=hi]) {
-            *i = c0 * e;
-        }
-    }
+    keep_start(c, s, m.kicks.is_some(), refine.is_some(), c0);
     let piston = c.piston != R::zero();
     // A piston's bead 0 is always in the window (`shrink`): contact 0's
     // force is what each kick gives it.
