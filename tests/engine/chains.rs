@@ -1103,8 +1103,9 @@ fn a_piston_needs_a_left_wall_a_speed_and_an_end() {
 
 /// `[solver] damping_split` is "auto" (the default), "substeps" or "ends",
 /// on chains only; the plan follows it only where there is damping to
-/// split, and "auto" puts the damping at the ends where it is weak on the
-/// chain's time scale (`granular::ENDS_BELOW`).
+/// split, and "auto" puts dashpots and drag at the ends where they are weak
+/// on the chain's time scale (`granular::ENDS_BELOW`), Hunt–Crossley
+/// contacts in the substeps.
 #[test]
 fn the_damping_split_is_a_chains_choice_of_three() {
     for (text, says) in [
@@ -1138,28 +1139,27 @@ fn the_damping_split_is_a_chains_choice_of_three() {
     )));
     // Nothing to split: an undamped chain's plan is the same as without it.
     assert!(!ends(&struck(100, 0.1, &split("ends"))));
-    // "auto": weak damping at the ends, strong in the substeps, "auto"
-    // itself the default.
-    for (damping, strong) in [
+    // "auto": weak dashpots and drag at the ends, strong ones and
+    // Hunt–Crossley contacts in the substeps, "auto" itself the default.
+    for (damping, at_ends) in [
         // A drag of 1/s against a contact time of ~50 µs.
-        (drag, false),
+        (drag, true),
         // Dashpots of 0.5 N·s/m on 4 g beads: 2γ/m ≈ 240/s.
-        ("[damping]\nviscosity = 0.5\n", false),
-        ("[damping]\nrestitution = 0.9\n", false),
+        ("[damping]\nviscosity = 0.5\n", true),
         // Dashpots of 50 N·s/m: 2γ/m ≈ 24,000/s, faster than the contact.
-        ("[damping]\nviscosity = 50.0\n", true),
-        ("[damping]\nrestitution = 0.5\n", true),
+        ("[damping]\nviscosity = 50.0\n", false),
+        ("[damping]\nrestitution = 0.9\n", false),
+        ("[damping]\nviscosity = 0.5\nrestitution = 0.99\n", false),
     ] {
         let (default, strength) = plan(&struck(100, 0.1, damping));
-        assert_eq!(default, !strong, "{damping}: strength {strength}");
-        assert_eq!(
-            strength >= granular::ENDS_BELOW,
-            strong,
-            "{damping}: {strength}"
-        );
+        assert_eq!(default, at_ends, "{damping}: strength {strength}");
         let auto = ends(&struck(100, 0.1, &format!("{damping}{}", split("auto"))));
         assert_eq!(auto, default, "{damping}");
     }
+    let strength = |damping: &str| plan(&struck(100, 0.1, damping)).1;
+    assert!(strength("[damping]\nviscosity = 0.5\n") < 0.1 * granular::ENDS_BELOW);
+    assert!(strength("[damping]\nviscosity = 50.0\n") > granular::ENDS_BELOW);
+    assert_eq!(strength("[damping]\nrestitution = 0.9\n"), 0.0);
 }
 
 /// Band gap of a precompressed dimer (issue #45; Boechler et al. 2010):
