@@ -1506,6 +1506,51 @@ mod tests {
         assert!(!is_near(0.0, 0.0, -1e-9, 1e-9, near, floor));
     }
 
+    /// With the damping at the steps' ends the sweeps read the springs the
+    /// forces kept (`Springs::Reuse`): after the start and after every step
+    /// of a windowed run, every contact's kept spring is, bit for bit, its
+    /// spring at its overlap now — in the window (the last substep's
+    /// forces) and out of it (an overlap moves only inside a window) — on
+    /// a dimer with Hunt–Crossley contacts, dashpots and drag, pushed by a
+    /// piston between precompressed walls.
+    #[test]
+    fn the_springs_a_step_keeps_are_those_at_its_end() {
+        use super::{step, State};
+        use crate::engine::granular::{hertz, plan, Beads, Consts};
+        use crate::engine::{Overrides, Solver};
+        use crate::scene::Scene;
+        let src = "balls = 60\nradius = 0.005\n[pattern]\nradius = [0.005, 0.0035]\n\
+                   [walls]\nleft = true\nright = true\nprecompression = 1.0\n[piston]\nvelocity = 0.2\n\
+                   [launch]\nballs = 1\nvelocity = 0.5\n\
+                   [damping]\nviscosity = 0.5\nrestitution = 0.9\nair_drag = 10.0\n\
+                   [solver]\ndt = 2e-7\ndamping_split = \"ends\"\n[stop]\nduration = 2e-4\n";
+        let scene = Scene::from_toml_str("kept", src).unwrap();
+        let b = Beads::from_scene(&scene);
+        let solver = Solver::resolve(&scene, &Overrides::default()).unwrap();
+        let p = plan(&b, &solver, None);
+        let m = p.substeps();
+        assert!(m.ends);
+        let c = Consts::<f64>::of(&b);
+        let mut s = State::start(&b, &c, m.weights, false, false);
+        let kept = |s: &State<f64>| {
+            (0..=b.n)
+                .all(|j| s.scratch.spring[j].to_bits() == hertz(c.k[j], c.d0[j] + s.p[j]).to_bits())
+        };
+        assert!(kept(&s), "at the start");
+        let mut widths = vec![];
+        for k in 0..1000 {
+            step(&c, &mut s, k as f64 * p.h, p.h, &m, false);
+            assert!(kept(&s), "after step {k}");
+            widths.push(s.hi - s.lo);
+        }
+        // The window moved and grew: contacts came into it with the springs
+        // they had kept when they last moved.
+        assert!(
+            widths[0] < b.n && widths.iter().max() > widths.first(),
+            "{widths:?}"
+        );
+    }
+
     /// A sweep of dashpots (in f64 on an AVX2 CPU, four contacts to a
     /// vector: `simd::dashpots`) gives the same bits as the contacts one by
     /// one ([`dashpot`]), on random states of a trimer chain between walls
