@@ -385,32 +385,28 @@ impl Beads {
     /// or the damping's if shorter.
     pub fn time_scale(&self) -> f64 {
         let t = self.elastic_time_scale();
-        // Damping: the fastest decay of a contact's relative velocity,
-        // γ·(1/m_a + 1/m_b) ≤ 2γ/m_min, and the air drag's rate.
-        if self.viscosity > 0.0 || self.air_drag > 0.0 {
-            t.min(1.0 / self.damping_rate())
-        } else {
-            t
+        match self.damping_rate() {
+            Some(rate) => t.min(1.0 / rate),
+            None => t,
         }
     }
 
     /// The fastest decay rate of the dashpots and the air drag (1/s):
     /// 2γ/m_min (a contact's relative velocity decays at γ·(1/m_a + 1/m_b))
-    /// or the drag's c.
-    fn damping_rate(&self) -> f64 {
-        let m_min = self.mass.iter().fold(f64::INFINITY, |m, &x| m.min(x));
-        (2.0 * self.viscosity / m_min).max(self.air_drag)
+    /// or the drag's c; `None` without either.
+    fn damping_rate(&self) -> Option<f64> {
+        (self.viscosity > 0.0 || self.air_drag > 0.0).then(|| {
+            let m_min = self.mass.iter().fold(f64::INFINITY, |m, &x| m.min(x));
+            (2.0 * self.viscosity / m_min).max(self.air_drag)
+        })
     }
 
     /// How strong the dashpots and the air drag are on the chain's own
     /// time scale ([`Beads::elastic_time_scale`] t_s): their fastest rate
     /// times t_s (0 without them).
     pub fn damping_strength(&self) -> f64 {
-        if self.viscosity > 0.0 || self.air_drag > 0.0 {
-            self.damping_rate() * self.elastic_time_scale()
-        } else {
-            0.0
-        }
+        self.damping_rate()
+            .map_or(0.0, |rate| rate * self.elastic_time_scale())
     }
 
     /// Where `damping_split = "auto"` puts a damped chain's damping: at the
