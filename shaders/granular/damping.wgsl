@@ -25,6 +25,34 @@ fn drag(lo: u32, hi: u32, t: real) {
     }
 }
 
+// step::hunt_crossley: the implicit midpoint of the dashpot's flow with
+// the Hunt–Crossley part k·δ^{3/2}·min(a, χ·w), χ kept per contact and
+// the same all through a step (set by `ratchet` at its end, < 0 while the
+// contact's closing speed rises): affine where it rises or the midpoint's
+// w is at or above a/|χ|, the Cayley map below.
+fn chi_of(j: u32) -> real {
+    let chi = R[H.o_chi + j];
+    return select(chi, r_div(R[H.sc + SC_HC], R[H.sc + SC_CHI_FLOOR]), !r_nz(chi));
+}
+
+fn hunt_crossley(j: u32, w: real, spring: real, beta: real, t: real) -> real {
+    let hc = R[H.sc + SC_HC];
+    let chi = chi_of(j);
+    let imu = R[H.o_imu + j];
+    // Rising (χ < 0): the affine flow all through the step.
+    let up = r_lt(chi, real(0.0));
+    if (up || r_le(t, real(0.0)) || r_ge(r_mul(w, chi), hc)) {
+        let g = r_mul(beta, t);
+        let c = r_mul(r_mul(r_mul(hc, spring), imu), t);
+        let wr = r_div(r_sub(r_mul(w, r_sub(real(2.0), g)), r_mul(real(2.0), c)), r_add(real(2.0), g));
+        if (up || r_ge(r_mul(r_add(w, wr), chi), r_mul(real(2.0), hc))) {
+            return wr;
+        }
+    }
+    let x = r_mul(r_add(beta, r_mul(r_mul(chi, spring), imu)), t);
+    return r_div(r_mul(w, r_sub(real(2.0), x)), r_add(real(2.0), x));
+}
+
 // step::dashpot: contact j's dashpot for t with its overlap frozen (its
 // beads' relative velocity decays by the Cayley map of β·t, never pulling
 // harder than the spring pushes; Hunt–Crossley's χ kept per contact).
@@ -48,17 +76,14 @@ fn dashpot(j: u32, t: real) {
     if (!r_nz(w)) {
         return;
     }
-    var beta = R[H.o_beta + j];
+    let beta = R[H.o_beta + j];
+    var wn: real;
     if ((H.flags & F_HC) != 0u) {
-        let chi = r_div(R[H.sc + SC_HC], fmax(r_abs(w), R[H.sc + SC_CHI_FLOOR]));
-        let old = R[H.o_chi + j];
-        if (!r_nz(old) || (r_gt(w, real(0.0)) && r_lt(chi, old))) {
-            R[H.o_chi + j] = chi;
-        }
-        beta = r_add(beta, r_mul(r_mul(R[H.o_chi + j], spring), R[H.o_imu + j]));
+        wn = hunt_crossley(j, w, spring, beta, t);
+    } else {
+        let x = r_mul(beta, t);
+        wn = r_div(r_mul(w, r_sub(real(2.0), x)), r_add(real(2.0), x));
     }
-    let x = r_mul(beta, t);
-    var wn = r_div(r_mul(w, r_sub(real(2.0), x)), r_add(real(2.0), x));
     if (r_gt(r_mul(r_sub(wn, w), t), real(0.0))) {
         let lim = r_add(w, r_mul(r_mul(spring, t), R[H.o_imu + j]));
         if (r_gt(r_mul(r_sub(wn, lim), t), real(0.0))) {
@@ -148,34 +173,54 @@ fn closing_correction(j: u32) -> real {
 // closing contacts' corrections (its left one's, then its right one's),
 // the kinetic energy this takes kept per bead.
 fn crossings(lo: u32, hi: u32) {
-    if ((H.flags & F_HC) != 0u) {
-        for (var j = lo + me; j <= hi; j += WG) {
-            if (r_le(r_add(R[H.o_d0 + j], R[H.o_p + j]), real(0.0))) {
-                R[H.o_chi + j] = real(0.0);
+    if ((H.flags & F_GAMMA) != 0u) {
+        // Contact i + 1's overlap and impulse are another invocation's.
+        storageBarrier();
+        workgroupBarrier();
+        for (var i = lo + me; i < hi; i += WG) {
+            let v = V(i);
+            var vn = v;
+            let im = R[H.o_im + i];
+            if (closed_in_step(i)) {
+                vn = r_sub(vn, r_mul(closing_correction(i), im));
+            }
+            if (closed_in_step(i + 1u)) {
+                vn = r_add(vn, keep(r_mul(closing_correction(i + 1u), im)));
+            }
+            if (any(vn != v)) {
+                set_v(i, vn);
+                let e = r_mul(r_mul(real(0.5), R[H.o_dm + i]), r_sub(r_mul(v, v), r_mul(vn, vn)));
+                R[H.o_lb + i] = r_add(R[H.o_lb + i], e);
             }
         }
     }
-    if ((H.flags & F_GAMMA) == 0u) {
+    if ((H.flags & F_HC) != 0u) {
+        // Bead j − 1's and j's velocities are other invocations'.
+        storageBarrier();
+        workgroupBarrier();
+        for (var j = lo + me; j <= hi; j += WG) {
+            ratchet(j);
+        }
+    }
+}
+
+// step::ratchet: contact j's χ at a step's end: cleared when it is open,
+// else a over its largest closing speed at the steps' ends (negative
+// where that speed rose at this one).
+fn ratchet(j: u32) {
+    if (r_le(r_add(R[H.o_d0 + j], R[H.o_p + j]), real(0.0))) {
+        R[H.o_chi + j] = real(0.0);
         return;
     }
-    // Contact i + 1's overlap and impulse are another invocation's.
-    storageBarrier();
-    workgroupBarrier();
-    for (var i = lo + me; i < hi; i += WG) {
-        let v = V(i);
-        var vn = v;
-        let im = R[H.o_im + i];
-        if (closed_in_step(i)) {
-            vn = r_sub(vn, r_mul(closing_correction(i), im));
-        }
-        if (closed_in_step(i + 1u)) {
-            vn = r_add(vn, keep(r_mul(closing_correction(i + 1u), im)));
-        }
-        if (any(vn != v)) {
-            set_v(i, vn);
-            let e = r_mul(r_mul(real(0.5), R[H.o_dm + i]), r_sub(r_mul(v, v), r_mul(vn, vn)));
-            R[H.o_lb + i] = r_add(R[H.o_lb + i], e);
-        }
+    let w = closing_of(j);
+    let hc = R[H.sc + SC_HC];
+    let chi = R[H.o_chi + j];
+    let held = select(chi, r_sub(real(0.0), chi), r_lt(chi, real(0.0)));
+    let cur = select(held, r_div(hc, R[H.sc + SC_CHI_FLOOR]), !r_nz(chi));
+    if (r_gt(r_mul(w, cur), hc)) {
+        R[H.o_chi + j] = r_sub(real(0.0), r_div(hc, w));
+    } else {
+        R[H.o_chi + j] = held;
     }
 }
 
@@ -216,19 +261,19 @@ fn accs(i: u32) -> array<real, 3> {
     return ac;
 }
 
-// observe::dashpot_gamma: γ, plus χ·k·δ^{3/2} with Hunt–Crossley contacts.
-fn dashpot_gamma(j: u32, spring: real) -> real {
-    if ((H.flags & F_HC) != 0u) {
-        return r_add(R[H.sc + SC_GAMMA], r_mul(R[H.o_chi + j], spring));
-    }
-    return R[H.sc + SC_GAMMA];
-}
-
 // observe::dashpot_force: contact j's dashpot's force on bead a.
 fn dashpot_force(j: u32) -> real {
     let spring = hertz(R[H.o_k + j], r_add(R[H.o_d0 + j], R[H.o_p + j]));
     if (r_gt(spring, real(0.0))) {
-        return fmax(r_mul(dashpot_gamma(j, spring), closing_of(j)), r_sub(real(0.0), spring));
+        let r1 = closing_of(j);
+        var f = r_mul(R[H.sc + SC_GAMMA], r1);
+        if ((H.flags & F_HC) != 0u) {
+            let chi = chi_of(j);
+            let a = r_mul(chi, r1);
+            let hc = R[H.sc + SC_HC];
+            f = r_add(f, r_mul(spring, select(a, hc, r_lt(chi, real(0.0)) || r_lt(hc, a))));
+        }
+        return fmax(f, r_sub(real(0.0), spring));
     }
     return real(0.0);
 }
@@ -243,14 +288,32 @@ fn damping_rate(j: u32, r2: real) -> real {
         return real(0.0);
     }
     let r1 = closing_of(j);
-    let g = dashpot_gamma(j, spring);
+    let hcs = (H.flags & F_HC) != 0u;
+    let hc = R[H.sc + SC_HC];
+    var chi = real(0.0);
+    if (hcs) {
+        chi = chi_of(j);
+    }
+    // Rising: the Hunt–Crossley part is a·k·δ^{3/2}.
+    let rising = hcs && (r_lt(chi, real(0.0)) || r_ge(r_mul(chi, r1), hc));
+    var g = R[H.sc + SC_GAMMA];
+    if (hcs && !rising) {
+        g = r_add(g, r_mul(chi, spring));
+    }
+    var f = r_mul(g, r1);
+    if (rising) {
+        f = r_add(f, r_mul(hc, spring));
+    }
     let spring_rate = r_mul(r_mul(r_mul(real(1.5), k), r_sqrt(dl)), r1);
-    if (r_lt(r_mul(g, r1), r_sub(real(0.0), spring))) {
+    if (r_lt(f, r_sub(real(0.0), spring))) {
         return r_sub(real(0.0), spring_rate);
     }
+    if (rising) {
+        return r_add(r_mul(g, r2), r_mul(hc, spring_rate));
+    }
     var extra = real(0.0);
-    if ((H.flags & F_HC) != 0u) {
-        extra = r_mul(r_mul(R[H.o_chi + j], spring_rate), r1);
+    if (hcs) {
+        extra = r_mul(r_mul(chi, spring_rate), r1);
     }
     return r_add(r_mul(g, r2), extra);
 }

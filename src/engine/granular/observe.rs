@@ -91,18 +91,31 @@ fn dashpot_force<R: Real>(c: &Consts<R>, st: &State<R>, j: usize) -> R {
     match &c.damp {
         // Closed as the step's dashpot sees it: its spring pushes.
         Some(dp) if spring > R::zero() => {
-            (dashpot_gamma(dp, st, j, spring) * closing(c, st, j)).max(R::zero() - spring)
+            let r1 = closing(c, st, j);
+            let f = match hunt_crossley_chi(dp, st, j) {
+                Some(chi) if chi < R::zero() => dp.gamma * r1 + spring * dp.hc,
+                Some(chi) => dp.gamma * r1 + spring * (chi * r1).min(dp.hc),
+                None => dp.gamma * r1,
+            };
+            f.max(R::zero() - spring)
         }
         _ => R::zero(),
     }
 }
 
-/// A closed contact's dashpot coefficient (N·s/m): γ, plus χ·k·δ^{3/2}
-/// with Hunt–Crossley contacts (`spring`: k·δ^{3/2}).
-fn dashpot_gamma<R: Real>(d: &super::DampConsts<R>, st: &State<R>, j: usize, spring: R) -> R {
+/// A Hunt–Crossley contact's χ (s/m; `None` without them): a over its
+/// closing speed so far, a over the floor before its first step's end
+/// closed, negative while it rises. Its force is k·δ^{3/2}·min(a, χ·δ̇)
+/// (the step's `hunt_crossley`): a·k·δ^{3/2} while its closing speed
+/// rises.
+fn hunt_crossley_chi<R: Real>(d: &super::DampConsts<R>, st: &State<R>, j: usize) -> Option<R> {
     match st.chi.get(j) {
-        Some(&chi) if d.hc != R::zero() => d.gamma + chi * spring,
-        _ => d.gamma,
+        Some(&chi) if d.hc != R::zero() => Some(if chi == R::zero() {
+            d.hc / d.chi_floor
+        } else {
+            chi
+        }),
+        _ => None,
     }
 }
 
@@ -150,15 +163,28 @@ fn damping_jerk<R: Real>(c: &Consts<R>, st: &State<R>, i: usize) -> R {
             return R::zero();
         }
         let r1 = closing(c, st, j);
-        let g = dashpot_gamma(d, st, j, spring);
         let spring_rate = R::of(1.5) * c.k[j] * dl.sqrt() * r1;
-        if g * r1 < R::zero() - spring {
+        let chi = hunt_crossley_chi(d, st, j);
+        // Rising: the Hunt–Crossley part is a·k·δ^{3/2}.
+        let rising = chi.is_some_and(|chi| chi < R::zero() || chi * r1 >= d.hc);
+        let g = match chi {
+            Some(chi) if !rising => d.gamma + chi * spring,
+            _ => d.gamma,
+        };
+        let f = if rising {
+            g * r1 + d.hc * spring
+        } else {
+            g * r1
+        };
+        if f < R::zero() - spring {
             // Slack: the dashpot's force is −k·δ^{3/2}, its rate −1.5·k·√δ·δ̇.
             R::zero() - spring_rate
+        } else if rising {
+            // γ·δ̈ + a·(1.5·k·√δ·δ̇).
+            g * across_acceleration(c, st, j) + d.hc * spring_rate
         } else {
             // (γ + χ·k·δ^{3/2})·δ̈ + χ·(1.5·k·√δ·δ̇)·δ̇.
-            let hc = st.chi.get(j).filter(|_| d.hc != R::zero());
-            let extra = hc.map_or(R::zero(), |&chi| chi * spring_rate * r1);
+            let extra = chi.map_or(R::zero(), |chi| chi * spring_rate * r1);
             g * across_acceleration(c, st, j) + extra
         }
     };

@@ -37,6 +37,8 @@ pub(super) struct Sweep<'a> {
     pub mu: &'a [f64],
     pub share_a: &'a [f64],
     pub share_b: &'a [f64],
+    /// Hunt–Crossley's χ per contact (0 before its first step's end closed).
+    pub chi: &'a [f64],
     /// The substep's length (< 0: back in time).
     pub t: f64,
     /// Hunt–Crossley's a(e) (0: none) and the floor of the closing speed.
@@ -45,12 +47,11 @@ pub(super) struct Sweep<'a> {
 }
 
 /// What a sweep changes: the beads' velocities, each contact's energy
-/// taken, impulse and χ (Hunt–Crossley only), and the springs it keeps.
+/// taken and impulse, and the springs it keeps.
 pub(super) struct Out<'a> {
     pub v: &'a mut [f64],
     pub lost: &'a mut [f64],
     pub dimp: &'a mut [f64],
-    pub chi: &'a mut [f64],
     pub spring: &'a mut [f64],
 }
 
@@ -78,7 +79,6 @@ pub(super) unsafe fn dashpots<const BACK: bool, const HC: bool>(
         v,
         lost,
         dimp,
-        chi,
         spring: kept,
     } = out;
     let end = j0 + 8 * chunks;
@@ -89,7 +89,7 @@ pub(super) unsafe fn dashpots<const BACK: bool, const HC: bool>(
     ] {
         assert!(end <= x.len());
     }
-    assert!(end <= lost.len() && end <= dimp.len() && (!HC || end <= chi.len()));
+    assert!(end <= lost.len() && end <= dimp.len() && (!HC || end <= sw.chi.len()));
     assert!(!(keep || reuse) || end <= kept.len());
     let zero = _mm256_setzero_pd();
     let one = _mm256_set1_pd(1.0);
@@ -98,10 +98,8 @@ pub(super) unsafe fn dashpots<const BACK: bool, const HC: bool>(
     let eps = _mm256_set1_pd(f64::EPSILON);
     let t = _mm256_set1_pd(sw.t);
     let hc = _mm256_set1_pd(sw.hc);
-    let floor = _mm256_set1_pd(sw.chi_floor);
-    let margin = _mm256_set1_pd(1.0 + 64.0 * f64::EPSILON);
-    let sign = _mm256_set1_pd(-0.0);
-    let abs = |x: __m256d| _mm256_andnot_pd(sign, x);
+    // χ before a contact's first step's end closed: a over the floor.
+    let chi_max = _mm256_set1_pd(sw.hc / sw.chi_floor);
     // k·δ·√δ with δ = max(δ, 0) ([`super::hertz`]).
     let hertz = |k: __m256d, d: __m256d| {
         let d = _mm256_max_pd(d, zero);
@@ -161,36 +159,53 @@ pub(super) unsafe fn dashpots<const BACK: bool, const HC: bool>(
         let slack = _mm256_andnot_pd(sure, _mm256_cmp_pd::<_CMP_LE_OQ>(spring, zero));
         let act = _mm256_andnot_pd(slack, act);
         let inv_mu = even(sw.inv_mu);
-        let mut beta = even(sw.beta);
-        if HC {
-            let (ce, co) = pair(chi);
-            let speed = _mm256_max_pd(abs(w), floor);
-            let zc = _mm256_cmp_pd::<_CMP_EQ_OQ>(ce, zero);
-            let closing = _mm256_cmp_pd::<_CMP_GT_OQ>(w, zero);
-            let below =
-                _mm256_cmp_pd::<_CMP_LT_OQ>(hc, _mm256_mul_pd(_mm256_mul_pd(ce, speed), margin));
-            let renew = _mm256_and_pd(act, _mm256_or_pd(zc, _mm256_and_pd(closing, below)));
-            // Most chunks renew no χ (a contact's closing speed grows for
-            // a few steps as its wave comes, then falls): the division
-            // only where one may, as `dashpot` does (a branch, rarely
-            // taken).
-            let ce = if _mm256_movemask_pd(renew) == 0 {
-                ce
+        let beta = even(sw.beta);
+        let wn = if HC {
+            // `hunt_crossley`: χ (a over the floor where it is 0), the
+            // Cayley map of (β + χ·k·δ^{3/2}/μ)·t, and where a contact may
+            // be rising (a branch, taken in the chunks at a wave's front)
+            // the affine flow's w', taken where χ < 0 or its midpoint is
+            // at or above a/χ.
+            let cs = pair(sw.chi).0;
+            // Rising contacts (χ < 0) take the affine flow.
+            let up = _mm256_cmp_pd::<_CMP_LT_OQ>(cs, zero);
+            let ce = _mm256_blendv_pd(cs, chi_max, _mm256_cmp_pd::<_CMP_EQ_OQ>(cs, zero));
+            let rate = _mm256_mul_pd(_mm256_mul_pd(ce, spring), inv_mu);
+            let x = _mm256_mul_pd(_mm256_add_pd(beta, rate), t);
+            let wn = _mm256_div_pd(
+                _mm256_mul_pd(w, _mm256_sub_pd(two, x)),
+                _mm256_add_pd(two, x),
+            );
+            let may = if BACK {
+                act
             } else {
-                let x = _mm256_div_pd(hc, speed);
-                let lower = _mm256_and_pd(closing, _mm256_cmp_pd::<_CMP_LT_OQ>(x, ce));
-                let set = _mm256_and_pd(renew, _mm256_or_pd(zc, lower));
-                let ce = _mm256_blendv_pd(ce, x, set);
-                put(chi, ce, co);
-                ce
+                let above = _mm256_cmp_pd::<_CMP_GE_OQ>(_mm256_mul_pd(w, ce), hc);
+                _mm256_and_pd(act, _mm256_or_pd(up, above))
             };
-            beta = _mm256_add_pd(beta, _mm256_mul_pd(_mm256_mul_pd(ce, spring), inv_mu));
-        }
-        let x = _mm256_mul_pd(beta, t);
-        let wn = _mm256_div_pd(
-            _mm256_mul_pd(w, _mm256_sub_pd(two, x)),
-            _mm256_add_pd(two, x),
-        );
+            if _mm256_movemask_pd(may) == 0 {
+                wn
+            } else {
+                let g = _mm256_mul_pd(beta, t);
+                let c = _mm256_mul_pd(_mm256_mul_pd(_mm256_mul_pd(hc, spring), inv_mu), t);
+                let wr = _mm256_div_pd(
+                    _mm256_sub_pd(
+                        _mm256_mul_pd(w, _mm256_sub_pd(two, g)),
+                        _mm256_mul_pd(two, c),
+                    ),
+                    _mm256_add_pd(two, g),
+                );
+                let mid = _mm256_mul_pd(_mm256_add_pd(w, wr), ce);
+                let over = _mm256_cmp_pd::<_CMP_GE_OQ>(mid, _mm256_mul_pd(two, hc));
+                let rise = _mm256_and_pd(may, _mm256_or_pd(up, over));
+                _mm256_blendv_pd(wn, wr, rise)
+            }
+        } else {
+            let x = _mm256_mul_pd(beta, t);
+            _mm256_div_pd(
+                _mm256_mul_pd(w, _mm256_sub_pd(two, x)),
+                _mm256_add_pd(two, x),
+            )
+        };
         // Pulling (forward: parting beads only): at most the spring's push.
         let parting = if BACK {
             act

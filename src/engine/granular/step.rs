@@ -945,6 +945,7 @@ fn sweep<R: Real, const BACK: bool>(
                 mu: f(&d.mu),
                 share_a: f(&d.share_a),
                 share_b: f(&d.share_b),
+                chi: f(&s.chi),
                 t: t.to64(),
                 hc: d.hc.to64(),
                 chi_floor: d.chi_floor.to64(),
@@ -953,7 +954,6 @@ fn sweep<R: Real, const BACK: bool>(
                 v: g(&mut s.v),
                 lost: g(&mut s.lost_c),
                 dimp: g(&mut s.scratch.dimp),
-                chi: g(&mut s.chi),
                 spring: g(&mut s.scratch.spring),
             };
             let sp = (springs == Springs::Keep, springs == Springs::Reuse);
@@ -1064,6 +1064,55 @@ fn drift_drag<R: Real, const DRAG_FIRST: bool>(
     }
 }
 
+/// A Hunt–Crossley contact's relative velocity after its dashpot for `t`
+/// (`spring` = k·δ^{3/2}, `inv_mu` = 1/μ, β = γ/μ): the implicit midpoint
+/// of dw/dt = −β·w − k·δ^{3/2}·min(a, χ·w)/μ, χ = a/W, W the contact's
+/// closing speed: the largest it has closed at at the steps' ends since it
+/// closed (at least `chi_floor`; `chi` = 0 before its first step's end
+/// closed), the same all through a step ([`ratchet`]), so that the flow is
+/// the same in every substep and each sweep, its implicit midpoint, is
+/// symmetric. A contact whose closing speed rose at the step's start
+/// (`chi` < 0, |χ| = a/W) is rising: its χ follows a over its speed, so
+/// its force is a·k·δ^{3/2} and the flow affine, w' = (w·(2 − g) − 2c)/(2 + g)
+/// (g = β·t, c = a·k·δ^{3/2}·t/μ), all through the step. Else the flow is
+/// affine where the midpoint's w is at or above W (its speed rising again
+/// inside the step), linear below — the Cayley map of
+/// (β + χ·k·δ^{3/2}/μ)·t — one of the two having its midpoint on its own
+/// side (they meet at W). Setting χ inside a step from the velocity each
+/// sweep found instead kept the top of the splitting's saw-tooth, a speed
+/// too high by O(h): order 1 (results/chains.md, "Hunt–Crossley's χ");
+/// and a rising contact's sweep at the step's start, at W exactly, would
+/// take the linear flow, a force short by O(h) there: order 1 at the ends.
+#[inline(always)]
+fn hunt_crossley<R: Real>(
+    d: &super::DampConsts<R>,
+    chi: R,
+    w: R,
+    spring: R,
+    inv_mu: R,
+    beta: R,
+    t: R,
+) -> R {
+    let (zero, two) = (R::zero(), R::of(2.0));
+    let affine = || {
+        let (g, c) = (beta * t, d.hc * spring * inv_mu * t);
+        (w * (two - g) - two * c) / (two + g)
+    };
+    if chi < zero {
+        return affine();
+    }
+    let chi = if chi == zero { d.hc / d.chi_floor } else { chi };
+    // Rising needs w·χ ≥ a forward (w' ≤ w there).
+    if t <= zero || w * chi >= d.hc {
+        let wr = affine();
+        if (w + wr) * chi >= two * d.hc {
+            return wr;
+        }
+    }
+    let x = (beta + chi * spring * inv_mu) * t;
+    w * (two - x) / (two + x)
+}
+
 /// Contact j's dashpot for `t` with its overlap frozen: while closed, its
 /// beads' relative velocity w = v_a − v_b decays as dw/dt = −β·w (β =
 /// γ·(1/m_a + 1/m_b)), their momentum kept, by the Cayley map of β·t.
@@ -1109,33 +1158,13 @@ fn dashpot<R: Real, const BACK: bool>(
     if !(dl >= R::epsilon() && k >= R::one()) && spring() <= zero {
         return;
     }
-    let mut beta = d.beta[j];
-    if d.hc != zero {
-        let spring = spring();
-        // Hunt–Crossley: χ·k·δ^{3/2} more, χ = a / the closing speed: the
-        // largest the contact has closed at since it closed (at its first
-        // substep closed, its overlap ≤ v·h, the impact's to
-        // O((h/t_c)^{5/2}); a precursor's contact, closed long before its
-        // wave comes, takes the wave's speed as it comes), at least
-        // `chi_floor`, as the cradles' closing speed has a floor.
-        let speed = w.abs().max(d.chi_floor);
-        let old = s.chi[j];
-        // a/speed < χ_old needs a < χ_old·speed·(1 + 64ε) (the rounding of
-        // the product and the quotient is far below that margin): most
-        // substeps skip the division, with the same bits.
-        let margin = R::one() + R::of(64.0) * R::epsilon();
-        // (Bitwise & and |: one branch, rarely taken, for the coin toss of
-        // closing or parting.)
-        if (old == zero) | ((w > zero) & (d.hc < old * speed * margin)) {
-            let chi = d.hc / speed;
-            if old == zero || (w > zero && chi < old) {
-                s.chi[j] = chi;
-            }
-        }
-        beta = beta + s.chi[j] * spring * d.inv_mu[j];
-    }
-    let x = beta * t;
-    let mut wn = w * (two - x) / (two + x);
+    let beta = d.beta[j];
+    let mut wn = if d.hc != zero {
+        hunt_crossley(d, s.chi[j], w, spring(), d.inv_mu[j], beta, t)
+    } else {
+        let x = beta * t;
+        w * (two - x) / (two + x)
+    };
     // Pulling over this substep (for t < 0, `BACK`, a substep back in
     // time, the same with the signs turned): at most the spring's push.
     // Forward only parting beads (w < 0) can pull, as the Cayley factor is
@@ -1173,18 +1202,50 @@ fn dashpot<R: Real, const BACK: bool>(
 #[inline(always)]
 fn crossings<R: Real>(c: &Consts<R>, d: &super::DampConsts<R>, s: &mut State<R>) {
     let zero = R::zero();
-    let (lo, hi) = (s.lo, s.hi);
+    if d.gamma != zero {
+        closings(c, d, s);
+    }
     if d.hc != zero {
-        // An open contact's next closing sets its χ afresh (a select, not
-        // a branch: a loop that vectorises).
-        let (d0, p, chi) = (&c.d0[lo..=hi], &s.p[lo..=hi], &mut s.chi[lo..=hi]);
-        for j in 0..chi.len() {
-            chi[j] = if d0[j] + p[j] <= zero { zero } else { chi[j] };
-        }
+        ratchet(c, d, s);
     }
-    if d.gamma == zero {
-        return;
+}
+
+/// Hunt–Crossley's χ at a step's end ([`hunt_crossley`]): an open
+/// contact's cleared (its next closing sets it afresh); a closed one's a
+/// over the largest closing speed of its steps' ends, negative where that
+/// speed rose at this one (rising).
+#[inline(always)]
+fn ratchet<R: Real>(c: &Consts<R>, d: &super::DampConsts<R>, s: &mut State<R>) {
+    let zero = R::zero();
+    let (lo, hi, n) = (s.lo, s.hi, s.v.len());
+    for j in lo..=hi {
+        let chi = s.chi[j];
+        s.chi[j] = if c.d0[j] + s.p[j] <= zero {
+            zero
+        } else {
+            let va = if j > 0 { s.v[j - 1] } else { c.piston };
+            let vb = if j < n { s.v[j] } else { zero };
+            let w = va - vb;
+            let held = if chi < zero { zero - chi } else { chi };
+            let cur = if chi == zero {
+                d.hc / d.chi_floor
+            } else {
+                held
+            };
+            if w * cur > d.hc {
+                zero - d.hc / w
+            } else {
+                held
+            }
+        };
     }
+}
+
+/// The closing corrections of a step's crossings ([`crossings`]).
+#[inline(always)]
+fn closings<R: Real>(c: &Consts<R>, d: &super::DampConsts<R>, s: &mut State<R>) {
+    let zero = R::zero();
+    let (lo, hi) = (s.lo, s.hi);
     let closed = |s: &State<R>, j: usize| closing_correction(c, d, s, j);
     // Most steps close no contact: one branch-free pass over the window
     // (a loop that vectorises) finds out, by a test every contact that
