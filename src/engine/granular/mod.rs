@@ -40,8 +40,8 @@ pub use run::{run, NoRows, Rows};
 
 /// `damping_split = "auto"` (the default) puts a damped chain's damping at
 /// the steps' ends when its [`Beads::damping_strength`] is below this (and
-/// it has no Hunt–Crossley contacts: [`Beads::auto_damping_ends`]), in
-/// every substep otherwise (docs/SPEC.md §9, "Damping"). At the ends a
+/// its Hunt–Crossley a(e) below [`HC_ENDS_BELOW`]:
+/// [`Beads::auto_damping_ends`]), in every substep otherwise (docs/SPEC.md §9, "Damping"). At the ends a
 /// step costs 1.0–1.6× the undamped one against 2–5× in the substeps, but
 /// its splitting errs ∝ γ·h²: where the damping sets the pace the error
 /// control then takes many more steps (a piston into dashpots of strength
@@ -49,6 +49,15 @@ pub use run::{run, NoRows, Rows};
 /// cheaper are at strengths 0.003–0.11; the one where they were not, at
 /// 1.9.
 pub const ENDS_BELOW: f64 = 0.25;
+
+/// `damping_split = "auto"` keeps Hunt–Crossley contacts at the steps'
+/// ends while their a(e) (`contact::hunt_crossley_a`: their force's part
+/// a·k·δ^{3/2} at the closing speed, relative to the spring's) is below
+/// this: e > 0.61. The ends were cheaper at a = 0.17 and 0.63 (e = 0.9,
+/// 0.7; struck and precompressed chains at tolerances 1e-4 and 1e-6) and
+/// 2.1× dearer at a = 1.43 (e = 0.5, the struck chain at 1e-6;
+/// results/chains.md, "Hunt–Crossley's χ at the steps' ends").
+pub const HC_ENDS_BELOW: f64 = 1.0;
 
 /// The run length (in time scales t_s) of the chain the step rule was
 /// fitted on ([`chain_error_model`]): shorter runs are stepped as if this
@@ -410,14 +419,12 @@ impl Beads {
     }
 
     /// Where `damping_split = "auto"` puts a damped chain's damping: at the
-    /// steps' ends (true) when it has no Hunt–Crossley contacts and its
-    /// [`Beads::damping_strength`] is below [`ENDS_BELOW`], else in every
-    /// substep (docs/SPEC.md §9, "Damping"). Hunt–Crossley contacts stay in
-    /// the substeps: at the ends their χ takes the closing speed once a
-    /// step, and a struck chain's row was `ok` at 1.7× its tolerance 1e-4
-    /// (results/chains.md, "The split chosen per chain").
+    /// steps' ends (true) when its [`Beads::damping_strength`] is below
+    /// [`ENDS_BELOW`] and its Hunt–Crossley a(e) below [`HC_ENDS_BELOW`],
+    /// else in every substep (docs/SPEC.md §9, "Damping").
     pub fn auto_damping_ends(&self) -> bool {
-        self.restitution >= 1.0 && self.damping_strength() < ENDS_BELOW
+        self.damping_strength() < ENDS_BELOW
+            && crate::engine::contact::hunt_crossley_a(self.restitution) < HC_ENDS_BELOW
     }
 
     /// The shortest time scale of the conservative chain (s): the two-body
