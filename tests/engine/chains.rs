@@ -753,12 +753,16 @@ fn arrival_is_the_leading_pulses_peak_not_a_precursor() {
 
 /// An independent integrator for damped chains (issue #45): classical RK4
 /// on the beads' displacements from rest u and velocities, every contact's
-/// force max(0, k·δ^{3/2} + γ·δ̇) while δ > 0 (never pulling), the air
-/// drag −c·v, at a fixed step `h` to `t_end`. A contact's force jumps where
+/// force max(0, k·δ^{3/2}·(1 + min(a, a·δ̇/W)) + γ·δ̇) while δ > 0 (never
+/// pulling; Hunt–Crossley's a(e), 0 for elastic contacts, W the contact's
+/// running maximum δ̇ since it closed, at least 1e-3·v_s, taken at the
+/// accepted steps' ends and, where δ̇ peaked inside one, at its cubic
+/// Hermite maximum), the air drag −c·v, at a fixed step `h` to `t_end`. A contact's force jumps where
 /// it closes (to γ·δ̇) and has kinks where it opens or goes slack, which a
 /// Runge–Kutta step across them takes at first order: a step after which
 /// some contact is in another regime (open, pushing, slack) is halved, down
-/// to h/2^30, so each such instant is passed in a step of ~1e-9·h. It knows
+/// to h/2^30, so each such instant is passed in a step of ~1e-9·h (a
+/// crossing of W, ten times). It knows
 /// nothing of the engine's splitting, its Cayley maps, the window or the
 /// crossing corrections. Returns the final velocities and the energy
 /// taken, the initial energy minus the final one (kinetic plus elastic;
