@@ -8,9 +8,9 @@
 //! (the plan's `Tally`: damping costs more near the wave, where contacts
 //! are closed, than ahead of it). Each damping in every substep (`[solver]
 //! damping_split = "substeps"`) and at the steps' ends ("ends"; the
-//! default "auto" picks the ends for the dashpots and the drag here, weak
-//! on the chain's time scale, and the substeps for Hunt–Crossley's
-//! contacts).
+//! default "auto" picks the ends for every damping here: the dashpots and
+//! the drag are weak on the chain's time scale, and e = 0.9 is above the
+//! Hunt–Crossley threshold).
 //! Best of 3 runs (or of the first argument's), one thread, the chain's
 //! cases taking turns (round-robin), so that a slow spell of a shared
 //! machine slows one run of each rather than one case's every run.

@@ -32,7 +32,7 @@ fn drag(lo: u32, hi: u32, t: real) {
 // w is at or above a/|χ|, the Cayley map below.
 fn chi_of(j: u32) -> real {
     let chi = R[H.o_chi + j];
-    return select(chi, r_div(R[H.sc + SC_HC], R[H.sc + SC_CHI_FLOOR]), !r_nz(chi));
+    return select(chi, R[H.sc + SC_CHI_UNSET], !r_nz(chi));
 }
 
 fn hunt_crossley(j: u32, w: real, spring: real, beta: real, t: real) -> real {
@@ -216,7 +216,7 @@ fn ratchet(j: u32) {
     let hc = R[H.sc + SC_HC];
     let chi = R[H.o_chi + j];
     let held = select(chi, r_sub(real(0.0), chi), r_lt(chi, real(0.0)));
-    let cur = select(held, r_div(hc, R[H.sc + SC_CHI_FLOOR]), !r_nz(chi));
+    let cur = select(held, R[H.sc + SC_CHI_UNSET], !r_nz(chi));
     if (r_gt(r_mul(w, cur), hc)) {
         R[H.o_chi + j] = r_sub(real(0.0), r_div(hc, w));
     } else {

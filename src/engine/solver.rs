@@ -176,7 +176,8 @@ pub struct Solver {
     /// A damped chain's damping at the steps' ends (`Some(true)`,
     /// `[solver] damping_split = "ends"`), in every substep (`Some(false)`,
     /// "substeps"), or chosen per chain (`None`, "auto", the default:
-    /// [`crate::engine::granular::ENDS_BELOW`]; docs/SPEC.md §9, "Damping").
+    /// [`crate::engine::granular::Beads::auto_damping_ends`]; docs/SPEC.md
+    /// §9, "Damping").
     pub damping_ends: Option<bool>,
 }
 

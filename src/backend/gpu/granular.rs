@@ -274,7 +274,7 @@ fn pack_damping<R: Real>(c: &Consts<R>, st: &State<R>, o: &Offsets, r: &mut [R])
     };
     r[Sc::Gamma as usize] = d.gamma;
     r[Sc::Hc as usize] = d.hc;
-    r[Sc::ChiFloor as usize] = d.chi_floor;
+    r[Sc::ChiUnset as usize] = d.chi_unset;
     r[Sc::Drag as usize] = d.drag;
     let mut put = |at: usize, x: &[R]| r[at..at + x.len()].copy_from_slice(x);
     put(o.beta, &d.beta);

@@ -293,8 +293,9 @@ scalars! {
     Gamma = "SC_GAMMA",
     /// the Hunt–Crossley a(e) (DampConsts::hc; 0: none)
     Hc = "SC_HC",
-    /// the smallest closing speed χ is taken at (DampConsts::chi_floor)
-    ChiFloor = "SC_CHI_FLOOR",
+    /// χ before a contact's first step's end closed: a over the smallest
+    /// closing speed χ is taken at (DampConsts::chi_unset)
+    ChiUnset = "SC_CHI_UNSET",
     /// the air drag (DampConsts::drag)
     Drag = "SC_DRAG",
 }

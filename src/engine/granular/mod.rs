@@ -160,10 +160,11 @@ pub struct DampConsts<R> {
     /// χ of a contact closed at rest (precompressed, under gravity): a / the
     /// velocity scale.
     pub chi_rest: R,
-    /// The smallest closing speed χ is taken at (1e-3 of the velocity
-    /// scale): a precursor's contact, closing at ~1e-30 m/s, would have a
-    /// χ that stiffens its dashpot past any step.
-    pub chi_floor: R,
+    /// χ of a contact before its first step's end closed: a over the
+    /// smallest closing speed χ is taken at (1e-3 of the velocity scale: a
+    /// precursor's contact, closing at ~1e-30 m/s, would have a χ that
+    /// stiffens its dashpot past any step).
+    pub chi_unset: R,
     /// Air drag (1/s).
     pub drag: R,
     /// γ·(1/m_a + 1/m_b) of each contact (1/s): the rate its relative
@@ -208,7 +209,7 @@ impl<R: Real> DampConsts<R> {
             gamma: R::of(b.viscosity),
             hc: R::of(hc),
             chi_rest: R::of(hc / b.v_scale()),
-            chi_floor: R::of(1e-3 * b.v_scale()),
+            chi_unset: R::of(hc) / R::of(1e-3 * b.v_scale()),
             drag: R::of(b.air_drag),
             beta: per_contact(&|j| b.viscosity * inv_mu[j]),
             mu: conv(

@@ -41,9 +41,10 @@ pub(super) struct Sweep<'a> {
     pub chi: &'a [f64],
     /// The substep's length (< 0: back in time).
     pub t: f64,
-    /// Hunt–Crossley's a(e) (0: none) and the floor of the closing speed.
+    /// Hunt–Crossley's a(e) (0: none) and χ before a contact's first
+    /// step's end closed (a over the floor of the closing speed).
     pub hc: f64,
-    pub chi_floor: f64,
+    pub chi_unset: f64,
 }
 
 /// What a sweep changes: the beads' velocities, each contact's energy
@@ -98,8 +99,7 @@ pub(super) unsafe fn dashpots<const BACK: bool, const HC: bool>(
     let eps = _mm256_set1_pd(f64::EPSILON);
     let t = _mm256_set1_pd(sw.t);
     let hc = _mm256_set1_pd(sw.hc);
-    // χ before a contact's first step's end closed: a over the floor.
-    let chi_max = _mm256_set1_pd(sw.hc / sw.chi_floor);
+    let chi_unset = _mm256_set1_pd(sw.chi_unset);
     // k·δ·√δ with δ = max(δ, 0) ([`super::hertz`]).
     let hertz = |k: __m256d, d: __m256d| {
         let d = _mm256_max_pd(d, zero);
@@ -169,7 +169,7 @@ pub(super) unsafe fn dashpots<const BACK: bool, const HC: bool>(
             let cs = pair(sw.chi).0;
             // Rising contacts (χ < 0) take the affine flow.
             let up = _mm256_cmp_pd::<_CMP_LT_OQ>(cs, zero);
-            let ce = _mm256_blendv_pd(cs, chi_max, _mm256_cmp_pd::<_CMP_EQ_OQ>(cs, zero));
+            let ce = _mm256_blendv_pd(cs, chi_unset, _mm256_cmp_pd::<_CMP_EQ_OQ>(cs, zero));
             let rate = _mm256_mul_pd(_mm256_mul_pd(ce, spring), inv_mu);
             let x = _mm256_mul_pd(_mm256_add_pd(beta, rate), t);
             let wn = _mm256_div_pd(

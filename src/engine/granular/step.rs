@@ -948,7 +948,7 @@ fn sweep<R: Real, const BACK: bool>(
                 chi: f(&s.chi),
                 t: t.to64(),
                 hc: d.hc.to64(),
-                chi_floor: d.chi_floor.to64(),
+                chi_unset: d.chi_unset.to64(),
             };
             let out = super::simd::Out {
                 v: g(&mut s.v),
@@ -1068,8 +1068,8 @@ fn drift_drag<R: Real, const DRAG_FIRST: bool>(
 /// (`spring` = k·δ^{3/2}, `inv_mu` = 1/μ, β = γ/μ): the implicit midpoint
 /// of dw/dt = −β·w − k·δ^{3/2}·min(a, χ·w)/μ, χ = a/W, W the contact's
 /// closing speed: the largest it has closed at at the steps' ends since it
-/// closed (at least `chi_floor`; `chi` = 0 before its first step's end
-/// closed), the same all through a step ([`ratchet`]), so that the flow is
+/// closed (at least the floor; `chi` = 0 before its first step's end
+/// closed, meaning `chi_unset`), the same all through a step ([`ratchet`]), so that the flow is
 /// the same in every substep and each sweep, its implicit midpoint, is
 /// symmetric. A contact whose closing speed rose at the step's start
 /// (`chi` < 0, |χ| = a/W) is rising: its χ follows a over its speed, so
@@ -1101,7 +1101,7 @@ fn hunt_crossley<R: Real>(
     if chi < zero {
         return affine();
     }
-    let chi = if chi == zero { d.hc / d.chi_floor } else { chi };
+    let chi = if chi == zero { d.chi_unset } else { chi };
     // Rising needs w·χ ≥ a forward (w' ≤ w there).
     if t <= zero || w * chi >= d.hc {
         let wr = affine();
@@ -1227,11 +1227,7 @@ fn ratchet<R: Real>(c: &Consts<R>, d: &super::DampConsts<R>, s: &mut State<R>) {
             let vb = if j < n { s.v[j] } else { zero };
             let w = va - vb;
             let held = if chi < zero { zero - chi } else { chi };
-            let cur = if chi == zero {
-                d.hc / d.chi_floor
-            } else {
-                held
-            };
+            let cur = if chi == zero { d.chi_unset } else { held };
             if w * cur > d.hc {
                 zero - d.hc / w
             } else {
