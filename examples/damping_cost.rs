@@ -15,6 +15,10 @@
 //! cases taking turns (round-robin), so that a slow spell of a shared
 //! machine slows one run of each rather than one case's every run.
 //!
+//! The last two columns: the windowed run with `Plan::rest` = 0 (only beads
+//! at exact rest wait: the window before 1e-30 of the velocity scale was
+//! rest's, results/chains.md "Beads at rest to 1e-30").
+//!
 //! `cargo run --release --example damping_cost [runs] [filter]` (filter:
 //! only the rows whose chain and damping, "chain: damping", contain it —
 //! e.g. "precompressed 10 N: viscosity" — each still against its chain's
@@ -58,8 +62,8 @@ fn main() {
             }
         )
     };
-    println!("| chain | damping | ns per bead-step (whole chain) | × undamped | run, windowed (s) | × undamped | mean window (beads) | ns per bead-step (window) | × undamped |");
-    println!("|---|---|---|---|---|---|---|---|---|");
+    println!("| chain | damping | ns per bead-step (whole chain) | × undamped | run, windowed (s) | × undamped | mean window (beads) | ns per bead-step (window) | × undamped | run, window of exact rest (s) | its mean window |");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|");
     let dampings = [
         ("none", ""),
         (
@@ -107,15 +111,21 @@ fn main() {
                 // The windowed runs' bead-steps, as the run counts them.
                 let tally = Tally::new();
                 windowed.tally = tally.clone();
-                (name, b, whole, windowed, tally)
+                // The window as it was before `Plan::rest`: only beads at
+                // exact rest wait.
+                let mut exact = windowed.clone();
+                exact.rest = 0.0;
+                exact.tally = Tally::new();
+                (name, b, [whole, windowed, exact], tally)
             })
             .collect();
         // Round-robin, best of `runs` each: a slow spell of the machine
         // slows every case's run in it, not one case's best.
-        let mut best = vec![[(f64::INFINITY, 0u64); 2]; cases.len()];
+        let mut best = vec![[(f64::INFINITY, 0u64); 3]; cases.len()];
         for _ in 0..runs {
-            for (case, (_, b, whole, windowed, _)) in best.iter_mut().zip(&cases) {
-                for (slot, (plan, w)) in case.iter_mut().zip([(whole, true), (windowed, false)]) {
+            for (case, (_, b, plans, _)) in best.iter_mut().zip(&cases) {
+                for (slot, (plan, w)) in case.iter_mut().zip(plans.iter().zip([true, false, false]))
+                {
                     let t = Instant::now();
                     let o = run_with(b, plan, &mut NoRows, w);
                     let x = (t.elapsed().as_secs_f64(), o.steps);
@@ -126,17 +136,19 @@ fn main() {
             }
         }
         let mut first = None;
-        for ((name, b, _, _, tally), [(tw, steps), (tr, _)]) in cases.iter().zip(best) {
+        for ((name, b, plans, tally), [(tw, steps), (tr, _), (te, _)]) in cases.iter().zip(best) {
             let stepped = tally.get().unwrap_or(0) as f64 / runs as f64;
+            let stepped_exact = plans[2].tally.get().unwrap_or(0) as f64 / runs as f64;
             let ns = tw / (steps as f64 * b.n as f64) * 1e9;
             let nw = tr / stepped * 1e9;
             let (ns0, tr0, nw0) = *first.get_or_insert((ns, tr, nw));
             println!(
-                "| {chain} | {name} | {ns:.2} | {:.2} | {tr:.3} | {:.1} | {:.0} | {nw:.2} | {:.2} |",
+                "| {chain} | {name} | {ns:.2} | {:.2} | {tr:.3} | {:.1} | {:.0} | {nw:.2} | {:.2} | {te:.3} | {:.0} |",
                 ns / ns0,
                 tr / tr0,
                 stepped / steps as f64,
-                nw / nw0
+                nw / nw0,
+                stepped_exact / steps as f64,
             );
         }
     }

@@ -1241,14 +1241,18 @@ fn main(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) 
             break;
         }
         step(st);
-        // State::shrink: the first and last moving bead of the old window.
+        // State::shrink: the first and last moving bead of the old window,
+        // a bead at rest when its speed is at most SC_REST and its
+        // acceleration at most SC_REST / h (NaN moves).
         let pulse_on = (H.flags & F_PULSE) != 0u && r_lt(r_add(st.t0, st.h), R[H.sc + SC_PULSE_DURATION]);
+        let rest = R[H.sc + SC_REST];
+        let a_rest = r_div(rest, st.h);
         // Each invocation's own first and last, then one atomic each (not
         // one per moving bead on the same two words).
         var mine_first = NONE;
         var mine_last = 0u;
         for (var i = st.lo + me; i < st.hi; i += WG) {
-            if (r_nz(V(i)) || r_nz(R[H.o_a + i]) || (pulse_on && i == H.pulse_bead)) {
+            if (!r_le(r_abs(V(i)), rest) || !r_le(r_abs(R[H.o_a + i]), a_rest) || (pulse_on && i == H.pulse_bead)) {
                 mine_first = min(mine_first, i);
                 mine_last = max(mine_last, i);
             }

@@ -197,8 +197,11 @@ fn skipping_beads_at_rest_changes_no_bit() {
         let (s, b) = chain(&text);
         let solver = Solver::resolve(&s, &Overrides::default()).unwrap();
         let mut plan = granular::plan(&b, &solver, None);
+        let rest = plan.rest;
+        assert_eq!(rest, granular::REST_BELOW * b.v_scale());
         for p in [Precision::F64, Precision::Df64] {
             plan.precision = p;
+            plan.rest = 0.0;
             let windowed = run_with(&b, &plan, &mut NoRows, false);
             let whole = run_with(&b, &plan, &mut NoRows, true);
             if text.contains("tolerance") {
@@ -206,6 +209,55 @@ fn skipping_beads_at_rest_changes_no_bit() {
             }
             // Debug text: NaN columns compare equal, every float to its last bit.
             assert_eq!(format!("{windowed:?}"), format!("{whole:?}"), "{text}");
+            // Beads slower than 1e-30 of the velocity scale waiting: the
+            // same outcome to far below its round-off.
+            plan.rest = rest;
+            let resting = run_with(&b, &plan, &mut NoRows, false);
+            let d = granular::control::difference(b.v_scale(), &resting, &whole);
+            assert!(d <= 1e-20, "{d:e}: {text}");
+            assert_eq!(resting.status, whole.status, "{text}");
+            assert_eq!(resting.steps, whole.steps, "{text}");
+        }
+    }
+}
+
+/// A damped chain's dashpots spread its wave's tail ahead of it four beads
+/// a step, at speeds down to the subnormal ~1e-320 m/s; the window steps
+/// none slower than 1e-30 of the velocity scale ([`granular::REST_BELOW`])
+/// whose force would not change that in a step. A precompressed chain with
+/// Hunt–Crossley contacts and one with dashpots then step about half the
+/// beads (results/chains.md, "Beads at rest to 1e-30"), an undamped one as
+/// many as before (its tail ends where its overlap's change rounds away).
+#[test]
+fn a_damped_chains_tail_far_below_round_off_waits() {
+    use hertz_cradle::engine::Tally;
+    for (damping, fewer) in [
+        ("[damping]\nrestitution = 0.9\n", true),
+        ("[damping]\nviscosity = 0.5\n", true),
+        ("", false),
+    ] {
+        let text = format!(
+            "balls = 400\nradius = 0.005\n[walls]\nleft = true\nright = true\nprecompression = 10.0\n\
+             [launch]\nballs = 1\nvelocity = 0.1\n[solver]\ndt = 2e-7\n[stop]\nduration = 1e-3\n{damping}"
+        );
+        let (s, b) = chain(&text);
+        let solver = Solver::resolve(&s, &Overrides::default()).unwrap();
+        let mut plan = granular::plan(&b, &solver, None);
+        let mut stepped = |rest: f64| {
+            plan.rest = rest;
+            plan.tally = Tally::new();
+            let o = run_with(&b, &plan, &mut NoRows, false);
+            (o, plan.tally.get().unwrap())
+        };
+        let (all, every) = stepped(0.0);
+        let (resting, some) = stepped(granular::REST_BELOW * b.v_scale());
+        let d = granular::control::difference(b.v_scale(), &resting, &all);
+        assert!(d <= 1e-20, "{d:e}: {damping}");
+        let ratio = some as f64 / every as f64;
+        if fewer {
+            assert!(ratio < 0.75, "{damping}: {some} of {every} bead-steps");
+        } else {
+            assert_eq!(some, every, "{damping}");
         }
     }
 }

@@ -160,7 +160,7 @@ fn pack<R: Real>(job: &ChainJob, base: usize, probe_at: usize) -> (ChainHead, f6
     let (b, plan): (&Beads, &Plan) = (&job.beads, &job.plan);
     let n = b.n;
     let w = plan.weights;
-    let c = Consts::<R>::of(b);
+    let c = Consts::<R>::of(b, plan.rest);
     let st = State::start(b, &c, w, false, false);
     let mut watch = Watch::<R>::new(b);
     watch.see(b, &c, &st, R::zero());
@@ -184,6 +184,7 @@ fn pack<R: Real>(job: &ChainJob, base: usize, probe_at: usize) -> (ChainHead, f6
     r[Sc::One as usize] = R::one();
     r[Sc::Cycles as usize] = pulse.map_or(zero, |p| p.cycles);
     r[Sc::Piston as usize] = c.piston;
+    r[Sc::Rest as usize] = c.rest;
     r[Sc::WallImp as usize] = st.wall_imp;
     r[Sc::RiseLevel as usize] = watch.rise_level;
     if let Some(a) = watch.amps.first() {
@@ -434,7 +435,7 @@ fn finish<R: Real>(job: &ChainJob, h: &ChainHead, reals: &[R], e_start: f64) -> 
         _ => Status::Ok,
     };
     let t = reals[Sc::T as usize];
-    let c = Consts::<R>::of(b);
+    let c = Consts::<R>::of(b, plan.rest);
     let max_ratio = reals[Sc::MaxRatio as usize].max(overlap_ratio(&c, &st, st.lo, st.hi));
     run::finish(b, plan, &st, watch, t, status, e_ref, max_ratio)
 }

@@ -279,6 +279,8 @@ scalars! {
     Cycles = "SC_CYCLES",
     /// the piston's speed (0: none)
     Piston = "SC_PISTON",
+    /// the speed below which a bead is at rest for the window (Consts::rest)
+    Rest = "SC_REST",
     /// the impulse the left wall has given bead 0 so far, when it is a piston
     WallImp = "SC_WALL_IMP",
     /// the wall's impulse when the energy snapshot was taken

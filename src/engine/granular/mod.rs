@@ -65,6 +65,15 @@ pub const HC_ENDS_BELOW: f64 = 1.0;
 pub const FIT_LENGTH: f64 = 82.0;
 /// Never fewer steps than this per time scale of the run ([`Beads::time_scale`]).
 pub const MIN_STEPS_PER_SCALE: f64 = 20.0;
+/// A bead slower than this fraction of the run's velocity scale
+/// ([`Beads::v_scale`]), whose acceleration would change its speed by less
+/// than that in a step, is at rest for the window ([`Plan::rest`],
+/// [`step::State`]'s `shrink`): thirteen orders of magnitude below the
+/// velocities' own round-off. Without it a damped chain steps a tail of
+/// ~10^-300 m/s (subnormal at its end) 90–180 beads ahead of its wave,
+/// which the dashpots' sweeps spread four beads a step (results/chains.md,
+/// "Beads at rest to 1e-30").
+pub const REST_BELOW: f64 = 1e-30;
 /// Leading-pulse detection floor: a velocity peak counts when it is above
 /// this fraction of the run's velocity scale ([`Beads::v_scale`]).
 pub const PEAK_FLOOR: f64 = 1e-3;
@@ -143,6 +152,9 @@ pub struct Consts<R> {
     pub damp: Option<DampConsts<R>>,
     /// The left wall's speed (m/s; 0: it stands still).
     pub piston: R,
+    /// The speed below which a bead is at rest for the window ([`Plan::rest`];
+    /// 0: only a bead at exact rest).
+    pub rest: R,
 }
 
 /// What the damping ([`step`]'s `damp` and `damp_end`) reads, in the step's
@@ -243,7 +255,9 @@ pub struct PulseConsts<R> {
 }
 
 impl<R: Real> Consts<R> {
-    pub fn of(b: &Beads) -> Consts<R> {
+    /// The constants of chain `b`, with `rest` ([`Plan::rest`]: m/s) the
+    /// speed below which a bead is at rest for the window.
+    pub fn of(b: &Beads, rest: f64) -> Consts<R> {
         let conv = |x: &[f64]| x.iter().map(|&x| R::of(x)).collect::<Vec<R>>();
         let (k, d0) = (conv(&b.k), conv(&b.d0));
         let f0 = k.iter().zip(&d0).map(|(&k, &d)| hertz(k, d)).collect();
@@ -265,6 +279,7 @@ impl<R: Real> Consts<R> {
             }),
             damp: b.damped().then(|| DampConsts::of(b)),
             piston: R::of(b.piston),
+            rest: R::of(rest),
         }
     }
 }
@@ -625,6 +640,13 @@ pub struct Plan {
     pub stop: crate::engine::Stop,
     /// Counts the bead-steps this run takes ([`crate::engine::Tally`]).
     pub tally: crate::engine::Tally,
+    /// The speed (m/s) below which a bead whose acceleration would change
+    /// its speed by less in a step is at rest for the window:
+    /// [`REST_BELOW`] × [`Beads::v_scale`]. Such a bead keeps its speed
+    /// unstepped until the window reaches it again. 0: only beads at exact
+    /// rest wait, and the window changes no bit of a run (test
+    /// `skipping_beads_at_rest_changes_no_bit`).
+    pub rest: f64,
 }
 
 impl Plan {
@@ -742,6 +764,7 @@ pub fn plan(beads: &Beads, solver: &Solver, every: Option<f64>) -> Plan {
                 .unwrap_or_else(|| beads.auto_damping_ends()),
         stop: crate::engine::Stop::default(),
         tally: crate::engine::Tally::default(),
+        rest: REST_BELOW * beads.v_scale(),
     };
     p.with_step(beads, h, false)
 }

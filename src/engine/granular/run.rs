@@ -73,7 +73,7 @@ pub fn step_end<R: Real>(c: &Consts<R>, plan: &Plan, k: u64) -> R {
 fn run_in<R: Real>(b: &Beads, plan: &Plan, rows: &mut dyn Rows, whole: bool) -> ChainOutcome {
     let w = plan.weights;
     let m = plan.substeps();
-    let c = Consts::<R>::of(b);
+    let c = Consts::<R>::of(b, plan.rest);
     let mut st = State::start(b, &c, w, whole, m.refine.is_some());
     let mut obs = Watch::new(b);
     let mut e_ref = b.pulse.is_none().then(|| budget(b, &st));

@@ -9,10 +9,16 @@
 //! the contacts of moving beads, the force reaches the next bead, the kick
 //! moves it). So the step works on the beads within [`MARGIN_EXTRA`] + s of
 //! the first and last moving bead, and its results are those of a step
-//! over the whole chain bit for bit (test: `window_changes_no_bit`). Ahead
+//! over the whole chain bit for bit (test:
+//! `skipping_beads_at_rest_changes_no_bit`, with `Plan::rest` = 0). Ahead
 //! of a solitary wave in an uncompressed chain, contacts touch at zero
 //! overlap and feel nothing: the window ends a few beads ahead of the front,
-//! where δ^{3/2} of the precursor underflows to zero.
+//! where δ^{3/2} of the precursor underflows to zero. A bead slower than
+//! [`super::Plan::rest`] (1e-30 of the velocity scale) whose acceleration
+//! would not change that in a step counts as at rest too: a damped chain's
+//! dashpots spread the wave's tail four beads a step down to subnormal
+//! speeds, which the window then leaves out (the outcome moves by far less
+//! than its round-off).
 
 use super::{hertz, Beads, Consts};
 use crate::engine::real::Real;
@@ -187,10 +193,13 @@ impl<R: Real> State<R> {
             // (Whichever the damping's split: its first step's window
             // reaches as far as either.)
             let (damped, stages) = (c.damp.is_some(), weights.len());
+            // At the start only beads at exact rest wait: no speed a user
+            // gave is taken for rest.
             s.shrink(
                 c,
                 reach(damped, stages, false).max(reach(damped, stages, true)),
                 zero,
+                (zero, zero),
             );
         }
         s
@@ -224,15 +233,25 @@ impl<R: Real> State<R> {
     }
 
     /// Re-fit the window around the moving beads (`t`: the time now) for a
-    /// step that reaches `reach` beads beyond them ([`reach`]).
-    fn shrink(&mut self, c: &Consts<R>, reach: usize, t: R) {
+    /// step that reaches `reach` beads beyond them ([`reach`]). A bead moves
+    /// unless its speed is at most `rest.0` and its acceleration at most
+    /// `rest.1` (NaN moves): after a step of h, [`Consts::rest`] and rest/h
+    /// (its speed then changes by at most `rest` in a step).
+    fn shrink(&mut self, c: &Consts<R>, reach: usize, t: R, (rest, a_rest): (R, R)) {
         // The pulse's bead stays in while the next step (from t) feels it,
         // and a piston's first bead always (the piston may reach it).
         let pulse = c.pulse.as_ref().filter(|_| pulse_on(c, t)).map(|p| p.bead);
         let piston = (c.piston != R::zero()).then_some(0);
-        let zero = R::zero();
+        // |x| above `at`, or NaN.
+        let over = |x: R, at: R| {
+            use std::cmp::Ordering::{Equal, Less};
+            !matches!(x.abs().partial_cmp(&at), Some(Less | Equal))
+        };
         let moving = |i: usize| {
-            self.v[i] != zero || self.a[i] != zero || Some(i) == pulse || Some(i) == piston
+            over(self.v[i], rest)
+                || over(self.a[i], a_rest)
+                || Some(i) == pulse
+                || Some(i) == piston
         };
         let first = (self.lo..self.hi).find(|&i| moving(i));
         let Some(first) = first else {
@@ -765,7 +784,10 @@ fn step_portable<R: Real>(c: &Consts<R>, s: &mut State<R>, t0: R, h: R, m: &Subs
     }
     s.steps += 1;
     if !whole {
-        s.shrink(c, reach(c.damp.is_some(), w.len(), m.ends), t0 + h);
+        // rest/h, not |a|·h against rest: with rest = 0 an acceleration that
+        // h would scale to zero still moves its bead.
+        let rest = (c.rest, c.rest / h);
+        s.shrink(c, reach(c.damp.is_some(), w.len(), m.ends), t0 + h, rest);
     }
 }
 
@@ -1587,7 +1609,7 @@ mod tests {
         let p = plan(&b, &solver, None);
         let m = p.substeps();
         assert!(m.ends);
-        let c = Consts::<f64>::of(&b);
+        let c = Consts::<f64>::of(&b, p.rest);
         let mut s = State::start(&b, &c, m.weights, false, false);
         let kept = |s: &State<f64>| {
             (0..=b.n)
@@ -1645,7 +1667,7 @@ mod tests {
         let mut cut = 0;
         for damping in ["viscosity = 40.0\n", "viscosity = 2.0\nrestitution = 0.7\n"] {
             let b = scene(damping);
-            let c = Consts::<f64>::of(&b);
+            let c = Consts::<f64>::of(&b, 0.0);
             let d = c.damp.as_ref().unwrap();
             for round in 0..400 {
                 let mut s = State::start(&b, &c, &[1.0], true, false);
