@@ -68,7 +68,7 @@ pub const MIN_STEPS_PER_SCALE: f64 = 20.0;
 /// A bead slower than this fraction of the run's velocity scale
 /// ([`Beads::v_scale`]), whose acceleration would change its speed by less
 /// than that in a step, is at rest for the window ([`Plan::rest`],
-/// [`step::State`]'s `shrink`): thirteen orders of magnitude below the
+/// [`step::State`]'s `shrink`): fourteen orders of magnitude below the
 /// velocities' own round-off. Without it a damped chain steps a tail of
 /// ~10^-300 m/s (subnormal at its end) 90–180 beads ahead of its wave,
 /// which the dashpots' sweeps spread four beads a step (results/chains.md,
