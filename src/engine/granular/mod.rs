@@ -194,6 +194,18 @@ pub struct DampConsts<R> {
 }
 
 impl<R: Real> DampConsts<R> {
+    /// A Hunt–Crossley contact's χ as the dashpots read it from its stored
+    /// `chi` (or |chi| where it is rising): `chi_unset` before its first
+    /// step's end closed (stored 0). The shader's twin is `chi_of`.
+    #[inline(always)]
+    pub fn chi_of(&self, chi: R) -> R {
+        if chi == R::zero() {
+            self.chi_unset
+        } else {
+            chi
+        }
+    }
+
     fn of(b: &Beads) -> DampConsts<R> {
         let n = b.n;
         // 1/m of contact j's beads (0 for a wall).

@@ -110,7 +110,7 @@ fn dashpot_force<R: Real>(c: &Consts<R>, st: &State<R>, j: usize) -> R {
 /// rises.
 fn hunt_crossley_chi<R: Real>(d: &super::DampConsts<R>, st: &State<R>, j: usize) -> Option<R> {
     match st.chi.get(j) {
-        Some(&chi) if d.hc != R::zero() => Some(if chi == R::zero() { d.chi_unset } else { chi }),
+        Some(&chi) if d.hc != R::zero() => Some(d.chi_of(chi)),
         _ => None,
     }
 }

@@ -1123,7 +1123,7 @@ fn hunt_crossley<R: Real>(
     if chi < zero {
         return affine();
     }
-    let chi = if chi == zero { d.chi_unset } else { chi };
+    let chi = d.chi_of(chi);
     // Rising needs w·χ ≥ a forward (w' ≤ w there).
     if t <= zero || w * chi >= d.hc {
         let wr = affine();
@@ -1249,7 +1249,7 @@ fn ratchet<R: Real>(c: &Consts<R>, d: &super::DampConsts<R>, s: &mut State<R>) {
             let vb = if j < n { s.v[j] } else { zero };
             let w = va - vb;
             let held = if chi < zero { zero - chi } else { chi };
-            let cur = if chi == zero { d.chi_unset } else { held };
+            let cur = d.chi_of(held);
             if w * cur > d.hc {
                 zero - d.hc / w
             } else {
