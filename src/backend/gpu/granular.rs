@@ -163,7 +163,7 @@ fn pack<R: Real>(job: &ChainJob, base: usize, probe_at: usize) -> (ChainHead, f6
     let c = Consts::<R>::of(b, plan.rest);
     let st = State::start(b, &c, w, false, false);
     let mut watch = Watch::<R>::new(b);
-    watch.see(b, &c, &st, R::zero());
+    watch.see(b, &c, &st, R::zero(), None);
     let refine = plan.substeps().refine;
     let o = offsets(job);
     let zero = R::zero();

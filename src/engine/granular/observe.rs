@@ -119,27 +119,76 @@ fn hunt_crossley_chi<R: Real>(d: &super::DampConsts<R>, st: &State<R>, j: usize)
 /// step kicks with), plus on a damped chain its dashpots' and the air
 /// drag's, so that the observers' interpolants see the motion's own rates.
 pub fn acceleration<R: Real>(c: &Consts<R>, st: &State<R>, i: usize) -> R {
+    acceleration_in(c, st, i, &mut Dashpots::new())
+}
+
+/// [`acceleration`], the dashpots' forces taken from `m`.
+fn acceleration_in<R: Real>(c: &Consts<R>, st: &State<R>, i: usize, m: &mut Dashpots<R>) -> R {
     match &c.damp {
         None => st.a[i],
         Some(d) => {
-            let g = dashpot_force(c, st, i) - dashpot_force(c, st, i + 1);
+            let g = m.force(c, st, i) - m.force(c, st, i + 1);
             st.a[i] + g * c.inv_mass[i] - d.drag * st.v[i]
         }
     }
 }
 
+/// The dashpots' forces ([`dashpot_force`]) an observation has computed:
+/// the rates of a probe on a damped chain read its few contacts' forces
+/// many times (each bead's acceleration, across contacts, in the jerk), a
+/// square root each. A force is a function of the state alone, so reading
+/// it here gives the same bits as computing it again.
+pub struct Dashpots<R> {
+    at: [usize; DASHPOTS_KEPT],
+    force: [R; DASHPOTS_KEPT],
+    len: usize,
+}
+
+/// How many forces [`Dashpots`] keeps (an observation of two probes, both
+/// walls and the far end reads 12); later ones are computed each time.
+const DASHPOTS_KEPT: usize = 16;
+
+impl<R: Real> Dashpots<R> {
+    pub fn new() -> Self {
+        Dashpots {
+            at: [0; DASHPOTS_KEPT],
+            force: [R::zero(); DASHPOTS_KEPT],
+            len: 0,
+        }
+    }
+
+    /// Contact j's dashpot force, computed at its first reading.
+    fn force(&mut self, c: &Consts<R>, st: &State<R>, j: usize) -> R {
+        if let Some(k) = self.at[..self.len].iter().position(|&a| a == j) {
+            return self.force[k];
+        }
+        let f = dashpot_force(c, st, j);
+        if self.len < DASHPOTS_KEPT {
+            (self.at[self.len], self.force[self.len]) = (j, f);
+            self.len += 1;
+        }
+        f
+    }
+}
+
+impl<R: Real> Default for Dashpots<R> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
 /// [`acceleration`] across contact j: the rate of δ̇_j.
-fn across_acceleration<R: Real>(c: &Consts<R>, st: &State<R>, j: usize) -> R {
+fn across_acceleration<R: Real>(c: &Consts<R>, st: &State<R>, j: usize, m: &mut Dashpots<R>) -> R {
     if c.damp.is_none() {
         return across(&st.a, j);
     }
     let l = if j == 0 {
         R::zero()
     } else {
-        acceleration(c, st, j - 1)
+        acceleration_in(c, st, j - 1, m)
     };
     let r = if j < st.v.len() {
-        acceleration(c, st, j)
+        acceleration_in(c, st, j, m)
     } else {
         R::zero()
     };
@@ -148,11 +197,11 @@ fn across_acceleration<R: Real>(c: &Consts<R>, st: &State<R>, j: usize) -> R {
 
 /// The rate of bead i's acceleration from its damping (m/s³): its
 /// dashpots' γ·δ̈ and the air drag's −c·a (0 undamped).
-fn damping_jerk<R: Real>(c: &Consts<R>, st: &State<R>, i: usize) -> R {
+fn damping_jerk<R: Real>(c: &Consts<R>, st: &State<R>, i: usize, m: &mut Dashpots<R>) -> R {
     let Some(d) = &c.damp else {
         return R::zero();
     };
-    let rate = |j: usize| {
+    let mut rate = |j: usize| {
         let dl = c.d0[j] + st.p[j];
         let spring = super::hertz(c.k[j], dl);
         if spring <= R::zero() {
@@ -177,20 +226,26 @@ fn damping_jerk<R: Real>(c: &Consts<R>, st: &State<R>, i: usize) -> R {
             R::zero() - spring_rate
         } else if rising {
             // γ·δ̈ + a·(1.5·k·√δ·δ̇).
-            g * across_acceleration(c, st, j) + d.hc * spring_rate
+            g * across_acceleration(c, st, j, m) + d.hc * spring_rate
         } else {
             // (γ + χ·k·δ^{3/2})·δ̈ + χ·(1.5·k·√δ·δ̇)·δ̇.
             let extra = chi.map_or(R::zero(), |chi| chi * spring_rate * r1);
-            g * across_acceleration(c, st, j) + extra
+            g * across_acceleration(c, st, j, m) + extra
         }
     };
-    (rate(i) - rate(i + 1)) * c.inv_mass[i] - d.drag * acceleration(c, st, i)
+    let (l, r) = (rate(i), rate(i + 1));
+    (l - r) * c.inv_mass[i] - d.drag * acceleration_in(c, st, i, m)
 }
 
 /// Force of contact j and its first two rates: (F, dF/dt, d²F/dt²).
 /// d²F/dt² has a 1/√δ term: near an opening contact it is left out
 /// (the polynomial then is cubic in effect; the force there is small).
-pub fn force_rates<R: Real>(c: &Consts<R>, st: &State<R>, j: usize) -> (R, R, R) {
+pub fn force_rates<R: Real>(
+    c: &Consts<R>,
+    st: &State<R>,
+    j: usize,
+    m: &mut Dashpots<R>,
+) -> (R, R, R) {
     let d = c.d0[j] + st.p[j];
     let zero = R::zero();
     if d <= zero || c.k[j] == zero {
@@ -198,7 +253,7 @@ pub fn force_rates<R: Real>(c: &Consts<R>, st: &State<R>, j: usize) -> (R, R, R)
     }
     let k = c.k[j];
     let sq = d.sqrt();
-    let (r1, r2) = (closing(c, st, j), across_acceleration(c, st, j));
+    let (r1, r2) = (closing(c, st, j), across_acceleration(c, st, j, m));
     let (c15, c075) = (R::of(1.5), R::of(0.75));
     (
         k * d * sq,
@@ -208,9 +263,15 @@ pub fn force_rates<R: Real>(c: &Consts<R>, st: &State<R>, j: usize) -> (R, R, R)
 }
 
 /// Velocity, acceleration and jerk of bead i.
-pub fn bead_rates<R: Real>(c: &Consts<R>, st: &State<R>, i: usize, t: R) -> (R, R, R) {
-    let (fl, fr) = (force_rates(c, st, i), force_rates(c, st, i + 1));
-    bead_rates_with(c, st, i, t, fl.1, fr.1)
+pub fn bead_rates<R: Real>(
+    c: &Consts<R>,
+    st: &State<R>,
+    i: usize,
+    t: R,
+    m: &mut Dashpots<R>,
+) -> (R, R, R) {
+    let (fl, fr) = (force_rates(c, st, i, m), force_rates(c, st, i + 1, m));
+    bead_rates_with(c, st, i, t, (fl.1, fr.1), m)
 }
 
 /// [`bead_rates`] from the rates of bead i's contact forces, left and right
@@ -220,8 +281,8 @@ pub fn bead_rates_with<R: Real>(
     st: &State<R>,
     i: usize,
     t: R,
-    left: R,
-    right: R,
+    (left, right): (R, R),
+    m: &mut Dashpots<R>,
 ) -> (R, R, R) {
     let mut jerk = (left - right) * c.inv_mass[i];
     if let Some(p) = c.pulse.as_ref().filter(|p| p.bead == i && t < p.duration) {
@@ -229,9 +290,9 @@ pub fn bead_rates_with<R: Real>(
         jerk = jerk + p.force * w * super::step::push_cos(p, t) * p.inv_mass;
     }
     if c.damp.is_some() {
-        jerk = jerk + damping_jerk(c, st, i);
+        jerk = jerk + damping_jerk(c, st, i, m);
     }
-    (st.v[i], acceleration(c, st, i), jerk)
+    (st.v[i], acceleration_in(c, st, i, m), jerk)
 }
 
 /// How many record peaks [`FirstPeak::see_leading`] keeps.

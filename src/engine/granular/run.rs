@@ -80,7 +80,7 @@ fn run_in<R: Real>(b: &Beads, plan: &Plan, rows: &mut dyn Rows, whole: bool) -> 
     let every = plan.every.map(|e| ((e / plan.h).round() as u64).max(1));
     let mut t = R::zero();
     rows.row(0.0, b, &st.in_f64());
-    obs.see(b, &c, &st, t);
+    obs.see(b, &c, &st, t, None);
     let mut end_at = plan.duration.map(R::of);
     let mut status = Status::Ok;
     // At rest every contact counts (the window then holds the moving ones).
@@ -105,9 +105,10 @@ fn run_in<R: Real>(b: &Beads, plan: &Plan, rows: &mut dyn Rows, whole: bool) -> 
         }
         let t1 = step_end(&c, plan, st.steps + 1);
         done += (st.hi - st.lo) as u64;
+        let moved = (st.lo, st.hi);
         step(&c, &mut st, t, t1 - t, &m, whole);
         t = t1;
-        obs.see(b, &c, &st, t);
+        obs.see(b, &c, &st, t, Some(moved));
         if e_ref.is_none() && pulse_end.is_some_and(|d| t >= d) {
             e_ref = Some(budget(b, &st));
         }
@@ -219,6 +220,18 @@ pub struct Watch<R = f64> {
     /// Under a drive, per probe, its velocity's amplitude at the drive's
     /// frequency over the run's second half.
     pub amps: Vec<Amplitude<R>>,
+    /// The rates [`Watch::see`] last computed at each place it reads.
+    kept: Kept<R>,
+}
+
+/// The rates [`Watch::see`] computed at each probe (its left and right
+/// contacts' force rates, its bead's v, a, jerk), at each wall's contact
+/// and at the far end, reused while no step comes near them.
+#[derive(Clone, Debug)]
+struct Kept<R> {
+    probes: Vec<Option<[[R; 3]; 3]>>,
+    walls: [Option<[R; 3]>; 2],
+    far: Option<[R; 3]>,
 }
 
 impl<R: Real> Watch<R> {
@@ -252,18 +265,59 @@ impl<R: Real> Watch<R> {
                 (Some(p), Some(end)) => vec![Amplitude::new(0.5 * end, end, p.frequency); amps],
                 _ => vec![],
             },
+            kept: Kept {
+                probes: vec![None; b.probes.len()],
+                walls: [None; 2],
+                far: None,
+            },
         }
     }
 
-    pub fn see(&mut self, b: &Beads, c: &Consts<R>, st: &State<R>, t: R) {
+    /// Observe the state at time `t`. `moved`: the window (beads lo .. hi,
+    /// contacts lo ..= hi) of the step that led to it, the only beads and
+    /// contacts that step changed (None: the first observation, or none
+    /// known). A place whose rates read only beads and contacts away from
+    /// it, and no pulse, takes the rates it last computed: the same values,
+    /// as its state has not changed (probes ahead of a wave, the far end).
+    pub fn see(
+        &mut self,
+        b: &Beads,
+        c: &Consts<R>,
+        st: &State<R>,
+        t: R,
+        moved: Option<(usize, usize)>,
+    ) {
         let n = b.n;
         let last = b.probes.len().wrapping_sub(1);
         let half = R::of(0.5);
+        // The dashpots' forces read more than once are computed once.
+        let m = &mut Dashpots::new();
+        // Whether the rates of a place reading beads a ..= z and the
+        // contacts between them are what they were: no bead or contact
+        // within one of them moved, and no pulse pushes there.
+        let kept = |a: usize, z: usize| {
+            moved.is_some_and(|(lo, hi)| z + 1 < lo || a > hi + 1)
+                && !c
+                    .pulse
+                    .as_ref()
+                    .is_some_and(|p| p.bead + 1 >= a && p.bead <= z + 1)
+        };
         for (k, &i) in b.probes.iter().enumerate() {
+            // A probe's rates read beads i − 2 ..= i + 2 (the dashpots of
+            // its neighbours' contacts) and contacts i − 1 ..= i + 2.
+            let rates = match self.kept.probes[k] {
+                Some(r) if kept(i.saturating_sub(2), i + 2) => r,
+                _ => {
+                    let (fl, dl, sl) = force_rates(c, st, i, m);
+                    let (fr, dr, sr) = force_rates(c, st, i + 1, m);
+                    let (v, a, j) = bead_rates_with(c, st, i, t, (dl, dr), m);
+                    let r = [[fl, dl, sl], [fr, dr, sr], [v, a, j]];
+                    self.kept.probes[k] = Some(r);
+                    r
+                }
+            };
+            let [[fl, dl, sl], [fr, dr, sr], [v, a, j]] = rates;
             let (vp, fp) = &mut self.probes[k];
-            let (fl, dl, sl) = force_rates(c, st, i);
-            let (fr, dr, sr) = force_rates(c, st, i + 1);
-            let (v, a, j) = bead_rates_with(c, st, i, t, dl, dr);
             let taken = vp.see_leading(t, [v, a, j], self.floor_v);
             if let Some(r) = self.rises.get_mut(k) {
                 r.see(t, [v, a, j], self.rise_level);
@@ -279,18 +333,36 @@ impl<R: Real> Watch<R> {
                 self.width = fwhm(&v);
             }
         }
-        for (w, j) in self.walls.iter_mut().zip([0, n]) {
+        // The walls' contacts read beads 0 ..= 1 and n − 2 ..= n − 1; the
+        // far end's bead n − 1 reads n − 3 ..= n − 1 (the right wall n).
+        let (left, right) = ((0, 1), (n.saturating_sub(3), n));
+        let mut wall = |slot: &mut Option<[R; 3]>, (a, z): (usize, usize), j: usize| match *slot {
+            Some(r) if kept(a, z) => r,
+            _ => {
+                let (f, d, s) = force_rates(c, st, j, m);
+                *slot = Some([f, d, s]);
+                [f, d, s]
+            }
+        };
+        let [kl, kr] = &mut self.kept.walls;
+        for (w, (j, slot, at)) in self.walls.iter_mut().zip([(0, kl, left), (n, kr, right)]) {
             if c.k[j] > R::zero() {
-                let (f, d, s) = force_rates(c, st, j);
-                w.see(t, [f, d, s], c.f0[j]);
+                w.see(t, wall(slot, at, j), c.f0[j]);
             }
         }
         if b.right_wall {
-            let (f, d, s) = force_rates(c, st, n);
+            let [f, d, s] = wall(&mut self.kept.walls[1], right, n);
             self.far.see(t, [f - c.f0[n], d, s], self.floor_f);
         } else {
-            let (v, a, j) = bead_rates(c, st, n - 1, t);
-            self.far.see(t, [v, a, j], self.floor_v);
+            let r = match self.kept.far {
+                Some(r) if kept(right.0, right.1) => r,
+                _ => {
+                    let (v, a, j) = bead_rates(c, st, n - 1, t, m);
+                    self.kept.far = Some([v, a, j]);
+                    [v, a, j]
+                }
+            };
+            self.far.see(t, r, self.floor_v);
         }
     }
 }
@@ -485,5 +557,65 @@ pub fn finish<R: Real>(
         tolerance: plan.tolerance,
         refined: plan.substeps().refine.is_some(),
         dashpots: b.viscosity > 0.0,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::engine::{Overrides, Solver};
+    use crate::scene::Scene;
+
+    /// The rates [`Watch::see`] keeps for a place no step came near are,
+    /// bit for bit, the ones it would compute: a run observed with each
+    /// step's window and the same run observed computing every place at
+    /// every step agree at every step, on chains whose waves reach their
+    /// probes, walls and far end partway through (damped and not, a
+    /// pulse, Hunt–Crossley contacts, a free far end), in f64 and df64.
+    #[test]
+    fn kept_rates_are_the_ones_computed() {
+        for text in [
+            "balls = 60\n[walls]\nleft = true\nright = true\nprecompression = 10.0\n[launch]\nballs = 1\nvelocity = 0.1\n\
+             [probes]\nbeads = [12, 40]\n[damping]\nviscosity = 0.5\n[solver]\ndt = 2e-7\n[stop]\nduration = 3e-4\n",
+            "balls = 50\n[launch]\nballs = 1\nvelocity = 0.1\n[probes]\nbeads = [10, 30]\n[damping]\nrestitution = 0.8\n\
+             [solver]\ndt = 2e-7\n[stop]\nduration = 3e-4\n",
+            "balls = 60\n[walls]\nleft = true\nright = true\nprecompression = 5.0\n[pulse]\nbead = 30\nforce = 2.0\n\
+             duration = 1e-5\n[probes]\nbeads = [8, 29, 52]\n[solver]\ndt = 2e-7\n[stop]\nduration = 2e-4\n",
+        ] {
+            let s = Scene::from_toml_str("chain", text).unwrap();
+            let b = Beads::from_scene(&s);
+            let solver = Solver::resolve(&s, &Overrides::default()).unwrap();
+            let plan = super::super::plan(&b, &solver, None);
+            let kept_some = watch_both::<f64>(&b, &plan, text);
+            assert!(kept_some > 0, "no rates were kept: {text}");
+            watch_both::<Df64>(&b, &plan, text);
+        }
+    }
+
+    /// Steps `b` as [`run_in`] does, observing each state twice; returns
+    /// how many observations found a probe away from the window.
+    fn watch_both<R: Real>(b: &Beads, plan: &Plan, text: &str) -> usize {
+        let m = plan.substeps();
+        let c = Consts::<R>::of(b, plan.rest);
+        let mut st = State::start(b, &c, plan.weights, false, m.refine.is_some());
+        let (mut kept, mut fresh) = (Watch::<R>::new(b), Watch::<R>::new(b));
+        let mut t = R::zero();
+        kept.see(b, &c, &st, t, None);
+        fresh.see(b, &c, &st, t, None);
+        let steps = (plan.duration.unwrap() / plan.h).round() as u64;
+        let mut away = 0;
+        for k in 1..=steps {
+            let t1 = step_end(&c, plan, k);
+            let moved = (st.lo, st.hi);
+            step(&c, &mut st, t, t1 - t, &m, false);
+            t = t1;
+            away += b.probes.iter().filter(|&&i| i + 3 < moved.0).count();
+            away += b.probes.iter().filter(|&&i| i > moved.1 + 3).count();
+            kept.see(b, &c, &st, t, Some(moved));
+            fresh.see(b, &c, &st, t, None);
+            let seen = |w: &Watch<R>| format!("{:?}", (&w.probes, &w.far, &w.walls, w.width));
+            assert_eq!(seen(&kept), seen(&fresh), "step {k}: {text}");
+        }
+        away
     }
 }
