@@ -93,10 +93,8 @@ pub(super) unsafe fn dashpots<const BACK: bool, const HC: bool>(
     assert!(end <= lost.len() && end <= dimp.len() && (!HC || end <= sw.chi.len()));
     assert!(!(keep || reuse) || end <= kept.len());
     let zero = _mm256_setzero_pd();
-    let one = _mm256_set1_pd(1.0);
     let two = _mm256_set1_pd(2.0);
     let half = _mm256_set1_pd(0.5);
-    let eps = _mm256_set1_pd(f64::EPSILON);
     let t = _mm256_set1_pd(sw.t);
     let hc = _mm256_set1_pd(sw.hc);
     let chi_unset = _mm256_set1_pd(sw.chi_unset);
@@ -139,25 +137,27 @@ pub(super) unsafe fn dashpots<const BACK: bool, const HC: bool>(
         if _mm256_movemask_pd(if keep { closed } else { act }) == 0 {
             continue;
         }
-        let k = even(sw.k);
         // The spring at these overlaps: a tiny overlap's may not push (then
         // its dashpot is off), Hunt–Crossley's χ multiplies it, and a
         // parting contact's pull is limited by it. Computed for every
         // chunk with a closed contact: a test that could skip the square
         // root costs more in mispredicted branches than it saves.
-        let spring = if reuse { pair(kept).0 } else { hertz(k, dl) };
+        let spring = if reuse {
+            pair(kept).0
+        } else {
+            hertz(even(sw.k), dl)
+        };
         if keep {
             put(kept, spring, zero);
             if _mm256_movemask_pd(act) == 0 {
                 continue;
             }
         }
-        let sure = _mm256_and_pd(
-            _mm256_cmp_pd::<_CMP_GE_OQ>(dl, eps),
-            _mm256_cmp_pd::<_CMP_GE_OQ>(k, one),
-        );
-        let slack = _mm256_andnot_pd(sure, _mm256_cmp_pd::<_CMP_LE_OQ>(spring, zero));
-        let act = _mm256_andnot_pd(slack, act);
+        // A closed contact whose spring does not push (`dashpot`'s test,
+        // which skips the square root where δ ≥ ε and k ≥ 1 make the push
+        // sure: there the spring is > 0 too, so the test on it alone is
+        // the same).
+        let act = _mm256_andnot_pd(_mm256_cmp_pd::<_CMP_LE_OQ>(spring, zero), act);
         let inv_mu = even(sw.inv_mu);
         let beta = even(sw.beta);
         let wn = if HC {
