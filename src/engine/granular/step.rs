@@ -1240,22 +1240,46 @@ fn crossings<R: Real>(c: &Consts<R>, d: &super::DampConsts<R>, s: &mut State<R>)
 fn ratchet<R: Real>(c: &Consts<R>, d: &super::DampConsts<R>, s: &mut State<R>) {
     let zero = R::zero();
     let (lo, hi, n) = (s.lo, s.hi, s.v.len());
-    for j in lo..=hi {
-        let chi = s.chi[j];
-        s.chi[j] = if c.d0[j] + s.p[j] <= zero {
+    // Contact j's new χ from its χ, overlap and closing speed w: selects,
+    // not branches (a rising contact's division computed for every one),
+    // so that the contacts between two beads go four at a time.
+    let next = |chi: R, dl: R, w: R| {
+        let held = if chi < zero { zero - chi } else { chi };
+        let rising = zero - d.hc / w;
+        let closed = if w * d.chi_of(held) > d.hc {
+            rising
+        } else {
+            held
+        };
+        if dl <= zero {
             zero
         } else {
-            let va = if j > 0 { s.v[j - 1] } else { c.piston };
-            let vb = if j < n { s.v[j] } else { zero };
-            let w = va - vb;
-            let held = if chi < zero { zero - chi } else { chi };
-            let cur = d.chi_of(held);
-            if w * cur > d.hc {
-                zero - d.hc / w
-            } else {
-                held
-            }
-        };
+            closed
+        }
+    };
+    let edge = |s: &mut State<R>, j: usize| {
+        let va = if j > 0 { s.v[j - 1] } else { c.piston };
+        let vb = if j < n { s.v[j] } else { zero };
+        s.chi[j] = next(s.chi[j], c.d0[j] + s.p[j], va - vb);
+    };
+    if lo == 0 {
+        edge(s, 0);
+    }
+    // Contacts a ..= z between two beads.
+    let (a, z) = (lo.max(1), hi.min(n - 1));
+    if a <= z {
+        let (chi, d0, p, v) = (
+            &mut s.chi[a..=z],
+            &c.d0[a..=z],
+            &s.p[a..=z],
+            &s.v[a - 1..=z],
+        );
+        for j in 0..chi.len() {
+            chi[j] = next(chi[j], d0[j] + p[j], v[j] - v[j + 1]);
+        }
+    }
+    if hi == n && n > 0 {
+        edge(s, n);
     }
 }
 
