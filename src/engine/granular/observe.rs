@@ -133,7 +133,7 @@ fn acceleration_in<R: Real>(c: &Consts<R>, st: &State<R>, i: usize, m: &mut Dash
     }
 }
 
-/// The dashpots' forces ([`dashpot_force`]) an observation has computed:
+/// The dashpots' forces (`dashpot_force`) an observation has computed:
 /// the rates of a probe on a damped chain read its few contacts' forces
 /// many times (each bead's acceleration, across contacts, in the jerk), a
 /// square root each. A force is a function of the state alone, so reading
