@@ -344,14 +344,18 @@ impl<R: Real> Watch<R> {
                 [f, d, s]
             }
         };
+        // Each wall contact's rates once: the right one's are also the far
+        // end's when it is a wall.
         let [kl, kr] = &mut self.kept.walls;
-        for (w, (j, slot, at)) in self.walls.iter_mut().zip([(0, kl, left), (n, kr, right)]) {
-            if c.k[j] > R::zero() {
-                w.see(t, wall(slot, at, j), c.f0[j]);
+        let rates = [(0, kl, left), (n, kr, right)].map(|(j, slot, at)| {
+            (c.k[j] > R::zero() || (j == n && b.right_wall)).then(|| wall(slot, at, j))
+        });
+        for (w, (j, r)) in self.walls.iter_mut().zip([0, n].into_iter().zip(rates)) {
+            if let Some(r) = r.filter(|_| c.k[j] > R::zero()) {
+                w.see(t, r, c.f0[j]);
             }
         }
-        if b.right_wall {
-            let [f, d, s] = wall(&mut self.kept.walls[1], right, n);
+        if let Some([f, d, s]) = rates[1].filter(|_| b.right_wall) {
             self.far.see(t, [f - c.f0[n], d, s], self.floor_f);
         } else {
             let r = match self.kept.far {

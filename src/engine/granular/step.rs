@@ -1242,7 +1242,9 @@ fn ratchet<R: Real>(c: &Consts<R>, d: &super::DampConsts<R>, s: &mut State<R>) {
     let (lo, hi, n) = (s.lo, s.hi, s.v.len());
     // Contact j's new χ from its χ, overlap and closing speed w: selects,
     // not branches (a rising contact's division computed for every one),
-    // so that the contacts between two beads go four at a time.
+    // so that a wave's front, where contacts start and stop rising, costs
+    // no mispredicted branch (the loop stays scalar: it is not
+    // vectorised).
     let next = |chi: R, dl: R, w: R| {
         let held = if chi < zero { zero - chi } else { chi };
         let rising = zero - d.hc / w;
