@@ -1661,8 +1661,10 @@ mod tests {
     /// one ([`dashpot`]), on random states of a trimer chain between walls
     /// that take every branch: open contacts, overlaps of 1e-250 (a spring
     /// that underflows) to 1e-5, beads at equal speeds (−0 too), pulls cut
-    /// at the spring's push, Hunt–Crossley χ new, kept and lowered, NaN; both
-    /// parities, forward and back in time.
+    /// at the spring's push, Hunt–Crossley χ new, kept and lowered, NaN;
+    /// both parities first, windows starting and ending at either parity, a
+    /// substep's three sweeps and a step end's two (which reuse the forces'
+    /// springs), forward and back in time.
     #[test]
     fn a_sweep_is_its_dashpots_one_by_one() {
         use super::{dashpot, sweep, Springs, State};
@@ -1727,23 +1729,38 @@ mod tests {
                     s.v[20] = f64::NAN;
                 }
                 let t = [2e-7, 1e-6, -3e-7][round % 3];
-                let first = (round / 3) % 2;
-                let (pre, mut one) = (s.clone(), s.clone());
-                // A damping substep's three sweeps: the even contacts keep
+                // Windows of every parity at both ends, and the whole chain.
+                if round % 5 != 0 {
+                    (s.lo, s.hi) = ((next() * 6.0) as usize, n - (next() * 6.0) as usize);
+                }
+                let first = s.lo + (round / 3) % 2;
+                let other = if first == s.lo { s.lo + 1 } else { s.lo };
+                // A damping substep's three sweeps (the even contacts keep
                 // their springs, the odd ones take theirs, the even ones
-                // reuse theirs.
-                let passes = [
-                    (first, 0.5 * t, Springs::Keep),
-                    (1 - first, t, Springs::Take),
-                    (first, 0.5 * t, Springs::Reuse),
-                ];
+                // reuse theirs), or a step end's two, which reuse the
+                // forces' springs.
+                let ends = round % 4 == 1;
+                let t1 = if ends { t } else { 0.5 * t };
+                let passes = if ends {
+                    for j in 0..=n {
+                        s.scratch.spring[j] = super::hertz(c.k[j], c.d0[j] + s.p[j]);
+                    }
+                    vec![(first, t, Springs::Reuse), (other, t, Springs::Reuse)]
+                } else {
+                    vec![
+                        (first, t1, Springs::Keep),
+                        (other, t, Springs::Take),
+                        (first, t1, Springs::Reuse),
+                    ]
+                };
+                let (pre, mut one) = (s.clone(), s.clone());
                 for (from, t, springs) in passes {
                     if t > 0.0 {
                         sweep::<f64, false>(&c, d, &mut s, from, t, springs);
                     } else {
                         sweep::<f64, true>(&c, d, &mut s, from, t, springs);
                     }
-                    for j in (from..=n).step_by(2) {
+                    for j in (from..=one.hi).step_by(2) {
                         if t > 0.0 {
                             dashpot::<f64, false>(&c, d, &mut one, j, t);
                         } else {
@@ -1761,16 +1778,16 @@ mod tests {
                 // Pulls cut at the spring's push happened (the rule's branch
                 // was taken), counted on the dashpots alone in the first sweep.
                 if d.hc == 0.0 {
-                    cut += (first..=n)
+                    cut += (first..=pre.hi)
                         .step_by(2)
                         .filter(|&j| {
                             let v = &pre.v;
                             let va = if j > 0 { v[j - 1] } else { 0.0 };
                             let w = va - if j < n { v[j] } else { 0.0 };
                             let dl = c.d0[j] + pre.p[j];
-                            let x = d.beta[j] * (0.5 * t);
+                            let x = d.beta[j] * t1;
                             let wn = w * (2.0 - x) / (2.0 + x);
-                            let lim = w + super::hertz(c.k[j], dl) * (0.5 * t) * d.inv_mu[j];
+                            let lim = w + super::hertz(c.k[j], dl) * t1 * d.inv_mu[j];
                             dl > 0.0 && w < 0.0 && t > 0.0 && wn > lim
                         })
                         .count();
