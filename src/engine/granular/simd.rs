@@ -56,8 +56,10 @@ pub(super) struct Out<'a> {
     pub spring: &'a mut [f64],
 }
 
-/// Contacts j0, j0 + 2, … (`chunks` × 4 of them, all between two beads):
-/// their dashpots for `sw.t`; their springs computed, and also kept in
+/// Contacts j0, j0 + 2, … up to `last` (`chunks` × 4 of them, but for the
+/// last chunk's lanes past `last`, which it leaves as they are; all
+/// between two beads, and j0 + 8 · `chunks` − 1 ≤ n: every chunk reads
+/// eight contacts): their dashpots for `sw.t`; their springs computed, and also kept in
 /// `out.spring` (`keep`), or read from it (`reuse`: kept by a sweep of the
 /// same contacts, the same values, a spring being a function of k and the
 /// frozen overlap alone).
@@ -73,8 +75,7 @@ pub(super) unsafe fn dashpots<const BACK: bool, const HC: bool>(
     sw: &Sweep,
     out: Out,
     (keep, reuse): (bool, bool),
-    j0: usize,
-    chunks: usize,
+    (j0, chunks, last): (usize, usize, usize),
 ) {
     let Out {
         v,
@@ -103,6 +104,11 @@ pub(super) unsafe fn dashpots<const BACK: bool, const HC: bool>(
         let d = _mm256_max_pd(d, zero);
         _mm256_mul_pd(_mm256_mul_pd(k, d), _mm256_sqrt_pd(d))
     };
+    // The last chunk's lanes (contacts j, j + 4, j + 2, j + 6) up to `last`.
+    let tail = _mm256_cmp_pd::<_CMP_LE_OQ>(
+        _mm256_setr_pd(0.0, 4.0, 2.0, 6.0),
+        _mm256_set1_pd(last as f64 - end.saturating_sub(8) as f64),
+    );
     for q in 0..chunks {
         let j = j0 + 8 * q;
         // Contacts j, j + 4, j + 2, j + 6 of array x, and the other four.
@@ -128,7 +134,10 @@ pub(super) unsafe fn dashpots<const BACK: bool, const HC: bool>(
             (_mm256_unpacklo_pd(lo, hi), _mm256_unpackhi_pd(lo, hi))
         };
         let w = _mm256_sub_pd(va, vb);
-        let closed = _mm256_cmp_pd::<_CMP_GT_OQ>(dl, zero);
+        let mut closed = _mm256_cmp_pd::<_CMP_GT_OQ>(dl, zero);
+        if q + 1 == chunks {
+            closed = _mm256_and_pd(closed, tail);
+        }
         let act = _mm256_and_pd(closed, _mm256_cmp_pd::<_CMP_NEQ_UQ>(w, zero));
         // A sweep that keeps its springs keeps those of every chunk with a
         // closed contact: the sweep that reuses them may find beads moving
