@@ -1670,7 +1670,8 @@ mod tests {
     /// at the spring's push, Hunt–Crossley χ new, kept and lowered, NaN;
     /// both parities first, windows starting and ending at either parity, a
     /// substep's three sweeps and a step end's two (which reuse the forces'
-    /// springs), forward and back in time.
+    /// springs), forward and back in time; dashpots, and Hunt–Crossley
+    /// contacts with them and without.
     #[test]
     fn a_sweep_is_its_dashpots_one_by_one() {
         use super::{dashpot, sweep, Springs, State};
@@ -1699,7 +1700,12 @@ mod tests {
                     .all(|(x, y)| x.to_bits() == y.to_bits() || (x.is_nan() && y.is_nan()))
         };
         let mut cut = 0;
-        for damping in ["viscosity = 40.0\n", "viscosity = 2.0\nrestitution = 0.7\n"] {
+        let dampings = [
+            "viscosity = 40.0\n",
+            "viscosity = 2.0\nrestitution = 0.7\n",
+            "restitution = 0.7\n",
+        ];
+        for damping in dampings {
             let b = scene(damping);
             let c = Consts::<f64>::of(&b, 0.0);
             let d = c.damp.as_ref().unwrap();
