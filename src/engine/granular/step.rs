@@ -1674,7 +1674,7 @@ mod tests {
     /// contacts with them and without.
     #[test]
     fn a_sweep_is_its_dashpots_one_by_one() {
-        use super::{dashpot, sweep, Springs, State};
+        use super::{dashpot, sweep, Springs};
         use crate::engine::granular::{Beads, Consts};
         use crate::scene::Scene;
         let scene = |damping: &str| {
@@ -1710,33 +1710,8 @@ mod tests {
             let c = Consts::<f64>::of(&b, 0.0);
             let d = c.damp.as_ref().unwrap();
             for round in 0..400 {
-                let mut s = State::start(&b, &c, &[1.0], true, false);
                 let n = b.n;
-                for j in 0..=n {
-                    let r = next();
-                    let dl = match (r * 10.0) as u32 {
-                        0 => -1e-6 * next(),
-                        1 => 0.0,
-                        2 => 1e-250 * next(),
-                        3 => 1e-205 * (1.0 + next()),
-                        4 => 1e-17 * next(),
-                        5 | 6 => 1e-10 * (1.0 + 1e3 * next()),
-                        _ => 1e-5 * next(),
-                    };
-                    s.p[j] = dl - c.d0[j];
-                    s.lost_c[j] = next() * 1e-6;
-                    s.scratch.dimp[j] = (next() - 0.5) * 1e-6;
-                    if !s.chi.is_empty() {
-                        s.chi[j] = [0.0, 0.5 * next(), 50.0 * next()][(next() * 3.0) as usize];
-                    }
-                }
-                for i in 0..n {
-                    s.v[i] = match (next() * 12.0) as u32 {
-                        0 if i > 0 => s.v[i - 1],
-                        1 => -0.0,
-                        _ => 0.2 * (next() - 0.5),
-                    };
-                }
+                let mut s = random_state(&b, &c, &mut next);
                 if round == 7 {
                     s.v[20] = f64::NAN;
                 }
@@ -1807,5 +1782,44 @@ mod tests {
             }
         }
         assert!(cut > 0);
+    }
+
+    /// A damped chain's state for [`a_sweep_is_its_dashpots_one_by_one`]:
+    /// overlaps from open to 1e-5 (1e-250 and 1e-205 among them), energies,
+    /// impulses, χ new, small and large, velocities with equal neighbours
+    /// and −0.
+    fn random_state(
+        b: &crate::engine::granular::Beads,
+        c: &crate::engine::granular::Consts<f64>,
+        next: &mut impl FnMut() -> f64,
+    ) -> super::State<f64> {
+        let mut s = super::State::start(b, c, &[1.0], true, false);
+        let n = b.n;
+        for j in 0..=n {
+            let r = next();
+            let dl = match (r * 10.0) as u32 {
+                0 => -1e-6 * next(),
+                1 => 0.0,
+                2 => 1e-250 * next(),
+                3 => 1e-205 * (1.0 + next()),
+                4 => 1e-17 * next(),
+                5 | 6 => 1e-10 * (1.0 + 1e3 * next()),
+                _ => 1e-5 * next(),
+            };
+            s.p[j] = dl - c.d0[j];
+            s.lost_c[j] = next() * 1e-6;
+            s.scratch.dimp[j] = (next() - 0.5) * 1e-6;
+            if !s.chi.is_empty() {
+                s.chi[j] = [0.0, 0.5 * next(), 50.0 * next()][(next() * 3.0) as usize];
+            }
+        }
+        for i in 0..n {
+            s.v[i] = match (next() * 12.0) as u32 {
+                0 if i > 0 => s.v[i - 1],
+                1 => -0.0,
+                _ => 0.2 * (next() - 0.5),
+            };
+        }
+        s
     }
 }
