@@ -57,12 +57,14 @@ pub(super) struct Out<'a> {
 }
 
 /// Contacts j0, j0 + 2, … up to `last` (`chunks` × 4 of them, but for the
-/// last chunk's lanes past `last`, which it leaves as they are; all
+/// last chunk's lanes past `last`, whose dashpots it leaves alone; all
 /// between two beads, and j0 + 8 · `chunks` − 1 ≤ n: every chunk reads
-/// eight contacts): their dashpots for `sw.t`; their springs computed, and also kept in
-/// `out.spring` (`keep`), or read from it (`reuse`: kept by a sweep of the
-/// same contacts, the same values, a spring being a function of k and the
-/// frozen overlap alone).
+/// eight contacts): their dashpots for `sw.t`; their springs computed, and
+/// also kept in `out.spring` (`keep`: a chunk writes its eight entries,
+/// the springs of its four lanes, those past `last` too, and 0 for the
+/// other parity; only the same window's `reuse` reads them), or read from
+/// it (`reuse`: kept by a sweep of the same contacts, the same values, a
+/// spring being a function of k and the frozen overlap alone).
 ///
 /// Long (~150 lines) on purpose: one chunk's dashpots in `dashpot`'s order,
 /// step for step, so that the two read side by side; split, a dozen

@@ -993,6 +993,7 @@ fn sweep<R: Real, const BACK: bool>(
                     super::simd::dashpots::<BACK, false>(&sw, out, sp, (j, chunks, top));
                 }
             }
+            // Past the chunks' contacts: past `top` if the last was masked.
             j += 2 * count.min(4 * chunks);
         }
     }
