@@ -1245,13 +1245,20 @@ fn crossings<R: Real>(c: &Consts<R>, d: &super::DampConsts<R>, s: &mut State<R>)
 /// speed rose at this one (rising).
 #[inline(always)]
 fn ratchet<R: Real>(c: &Consts<R>, d: &super::DampConsts<R>, s: &mut State<R>) {
+    ratchet_in(c, d, s, vector_sweeps::<R>());
+}
+
+/// [`ratchet`], four contacts to a vector (`vector`: f64 on a CPU with
+/// AVX2, [`vector_sweeps`]) or one by one.
+#[inline(always)]
+fn ratchet_in<R: Real>(c: &Consts<R>, d: &super::DampConsts<R>, s: &mut State<R>, vector: bool) {
     let zero = R::zero();
     let (lo, hi, n) = (s.lo, s.hi, s.v.len());
     // Contact j's new χ from its χ, overlap and closing speed w: selects,
     // not branches (a rising contact's division computed for every one),
     // so that a wave's front, where contacts start and stop rising, costs
-    // no mispredicted branch (the loop stays scalar: it is not
-    // vectorised).
+    // no mispredicted branch (LLVM leaves this loop scalar: the vector
+    // one is written out, [`super::simd::ratchet`]).
     let next = |chi: R, dl: R, w: R| {
         let held = if chi < zero { zero - chi } else { chi };
         let rising = zero - d.hc / w;
@@ -1274,8 +1281,26 @@ fn ratchet<R: Real>(c: &Consts<R>, d: &super::DampConsts<R>, s: &mut State<R>) {
     if lo == 0 {
         edge(s, 0);
     }
-    // Contacts a ..= z between two beads.
+    // Contacts a ..= z between two beads: in f64 with AVX2 four at a time
+    // up to the last whole four ([`super::simd::ratchet`], the same bits).
     let (a, z) = (lo.max(1), hi.min(n - 1));
+    #[cfg(target_arch = "x86_64")]
+    let a = if vector && a <= z {
+        use super::simd::{as64 as f, as64_mut as g};
+        // SAFETY: the CPU has AVX2 (checked by the caller).
+        unsafe {
+            super::simd::ratchet(
+                g(&mut s.chi),
+                (f(&c.d0), f(&s.p), f(&s.v)),
+                (d.hc.to64(), d.chi_unset.to64()),
+                (a, z),
+            )
+        }
+    } else {
+        a
+    };
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = vector;
     if a <= z {
         let (chi, d0, p, v) = (
             &mut s.chi[a..=z],
@@ -1783,6 +1808,76 @@ mod tests {
             }
         }
         assert!(cut > 0);
+    }
+
+    /// Hunt–Crossley's ratchet at a step's end (in f64 on an AVX2 CPU,
+    /// four contacts to a vector: `simd::ratchet`) gives the same bits as
+    /// the contacts one by one, on random states that take every branch:
+    /// open contacts (cleared), χ new, kept, rising (negative) and NaN,
+    /// contacts that start to rise or go on rising, windows of every
+    /// length at both ends and the whole chain.
+    #[test]
+    fn the_ratchet_is_its_contacts_one_by_one() {
+        use super::ratchet_in;
+        use crate::engine::granular::{Beads, Consts};
+        use crate::scene::Scene;
+        let src = "balls = 43\nradius = 0.005\n[pattern]\nradius = [0.005, 0.0035, 0.004]\n\
+                   [walls]\nleft = true\nright = true\n[launch]\nballs = 1\nvelocity = 0.1\n\
+                   [damping]\nrestitution = 0.7\n";
+        let b = Beads::from_scene(&Scene::from_toml_str("ratchet", src).unwrap());
+        let c = Consts::<f64>::of(&b, 0.0);
+        let d = c.damp.as_ref().unwrap();
+        let mut x = 0x51_7cc1_b727_220a_u64;
+        let mut next = move || {
+            x ^= x >> 12;
+            x ^= x << 25;
+            x ^= x >> 27;
+            (x.wrapping_mul(0x2545_f491_4f6c_dd1d) >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let (mut rose, mut cleared, mut kept) = (0, 0, 0);
+        for round in 0..300 {
+            let mut s = random_state(&b, &c, &mut next);
+            // Rising contacts (χ < 0), and χ of either sign near a over
+            // the closing speed, so that contacts start to rise.
+            for j in 0..=b.n {
+                let w = if j > 0 && j < b.n {
+                    s.v[j - 1] - s.v[j]
+                } else {
+                    0.0
+                };
+                s.chi[j] = match (next() * 4.0) as u32 {
+                    0 => -s.chi[j],
+                    1 => d.hc / w * (0.9 + 0.2 * next()),
+                    _ => s.chi[j],
+                };
+            }
+            if round == 3 {
+                s.chi[17] = f64::NAN;
+            }
+            if round % 4 != 0 {
+                s.lo = (next() * 8.0) as usize;
+                s.hi = (s.lo + (next() * 40.0) as usize).min(b.n);
+            }
+            let (before, mut one) = (s.clone(), s.clone());
+            ratchet_in(&c, d, &mut s, super::vector_sweeps::<f64>());
+            ratchet_in(&c, d, &mut one, false);
+            for j in 0..s.chi.len() {
+                let (v, o) = (s.chi[j], one.chi[j]);
+                assert!(
+                    v.to_bits() == o.to_bits() || (v.is_nan() && o.is_nan()),
+                    "contact {j}, round {round}: {v} against {o}"
+                );
+                if j >= s.lo && j <= s.hi {
+                    rose += (o < 0.0 && before.chi[j] >= 0.0) as usize;
+                    cleared += (o == 0.0 && before.chi[j] != 0.0) as usize;
+                    kept += (o > 0.0 && o == before.chi[j]) as usize;
+                }
+            }
+        }
+        assert!(
+            rose > 100 && cleared > 100 && kept > 100,
+            "{rose} {cleared} {kept}"
+        );
     }
 
     /// A damped chain's state for [`a_sweep_is_its_dashpots_one_by_one`]:
