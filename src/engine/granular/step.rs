@@ -1711,14 +1711,7 @@ mod tests {
             );
             Beads::from_scene(&Scene::from_toml_str("sweep", &src).unwrap())
         };
-        // xorshift64*: a fixed sequence, no dependency.
-        let mut x = 0x9e37_79b9_7f4a_7c15_u64;
-        let mut next = move || {
-            x ^= x >> 12;
-            x ^= x << 25;
-            x ^= x >> 27;
-            (x.wrapping_mul(0x2545_f491_4f6c_dd1d) >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut next = uniform(0x9e37_79b9_7f4a_7c15);
         let same = |a: &[f64], b: &[f64]| {
             a.len() == b.len()
                 && a.iter()
@@ -1827,13 +1820,7 @@ mod tests {
         let b = Beads::from_scene(&Scene::from_toml_str("ratchet", src).unwrap());
         let c = Consts::<f64>::of(&b, 0.0);
         let d = c.damp.as_ref().unwrap();
-        let mut x = 0x51_7cc1_b727_220a_u64;
-        let mut next = move || {
-            x ^= x >> 12;
-            x ^= x << 25;
-            x ^= x >> 27;
-            (x.wrapping_mul(0x2545_f491_4f6c_dd1d) >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut next = uniform(0x51_7cc1_b727_220a);
         let (mut rose, mut cleared, mut kept) = (0, 0, 0);
         for round in 0..300 {
             let mut s = random_state(&b, &c, &mut next);
@@ -1878,6 +1865,18 @@ mod tests {
             rose > 100 && cleared > 100 && kept > 100,
             "{rose} {cleared} {kept}"
         );
+    }
+
+    /// Uniform numbers in [0, 1) from `seed` by xorshift64*: a fixed
+    /// sequence, no dependency.
+    fn uniform(seed: u64) -> impl FnMut() -> f64 {
+        let mut x = seed;
+        move || {
+            x ^= x >> 12;
+            x ^= x << 25;
+            x ^= x >> 27;
+            (x.wrapping_mul(0x2545_f491_4f6c_dd1d) >> 11) as f64 / (1u64 << 53) as f64
+        }
     }
 
     /// A damped chain's state for [`a_sweep_is_its_dashpots_one_by_one`]:
