@@ -1701,16 +1701,7 @@ mod tests {
     #[test]
     fn a_sweep_is_its_dashpots_one_by_one() {
         use super::{dashpot, sweep, Springs};
-        use crate::engine::granular::{Beads, Consts};
-        use crate::scene::Scene;
-        let scene = |damping: &str| {
-            let src = format!(
-                "balls = 43\nradius = 0.005\n[pattern]\nradius = [0.005, 0.0035, 0.004]\n\
-                 [walls]\nleft = true\nright = true\n[launch]\nballs = 1\nvelocity = 0.1\n\
-                 [damping]\n{damping}"
-            );
-            Beads::from_scene(&Scene::from_toml_str("sweep", &src).unwrap())
-        };
+        use crate::engine::granular::Consts;
         let mut next = uniform(0x9e37_79b9_7f4a_7c15);
         let same = |a: &[f64], b: &[f64]| {
             a.len() == b.len()
@@ -1725,7 +1716,7 @@ mod tests {
             "restitution = 0.7\n",
         ];
         for damping in dampings {
-            let b = scene(damping);
+            let b = trimer(damping);
             let c = Consts::<f64>::of(&b, 0.0);
             let d = c.damp.as_ref().unwrap();
             for round in 0..400 {
@@ -1812,12 +1803,8 @@ mod tests {
     #[test]
     fn the_ratchet_is_its_contacts_one_by_one() {
         use super::ratchet_in;
-        use crate::engine::granular::{Beads, Consts};
-        use crate::scene::Scene;
-        let src = "balls = 43\nradius = 0.005\n[pattern]\nradius = [0.005, 0.0035, 0.004]\n\
-                   [walls]\nleft = true\nright = true\n[launch]\nballs = 1\nvelocity = 0.1\n\
-                   [damping]\nrestitution = 0.7\n";
-        let b = Beads::from_scene(&Scene::from_toml_str("ratchet", src).unwrap());
+        use crate::engine::granular::Consts;
+        let b = trimer("restitution = 0.7\n");
         let c = Consts::<f64>::of(&b, 0.0);
         let d = c.damp.as_ref().unwrap();
         let mut next = uniform(0x51_7cc1_b727_220a);
@@ -1867,6 +1854,19 @@ mod tests {
         );
     }
 
+    /// The random tests' chain: 43 beads of a trimer's three radii between
+    /// walls, struck at one end, with `damping` (the `[damping]` table's
+    /// keys).
+    fn trimer(damping: &str) -> crate::engine::granular::Beads {
+        let src = format!(
+            "balls = 43\nradius = 0.005\n[pattern]\nradius = [0.005, 0.0035, 0.004]\n\
+             [walls]\nleft = true\nright = true\n[launch]\nballs = 1\nvelocity = 0.1\n\
+             [damping]\n{damping}"
+        );
+        let scene = crate::scene::Scene::from_toml_str("trimer", &src).unwrap();
+        crate::engine::granular::Beads::from_scene(&scene)
+    }
+
     /// Uniform numbers in [0, 1) from `seed` by xorshift64*: a fixed
     /// sequence, no dependency.
     fn uniform(seed: u64) -> impl FnMut() -> f64 {
@@ -1879,7 +1879,8 @@ mod tests {
         }
     }
 
-    /// A damped chain's state for [`a_sweep_is_its_dashpots_one_by_one`]:
+    /// A damped chain's state for the random tests
+    /// ([`a_sweep_is_its_dashpots_one_by_one`], [`the_ratchet_is_its_contacts_one_by_one`]):
     /// overlaps from open to 1e-5 (1e-250 and 1e-205 among them), energies,
     /// impulses, χ new, small and large, velocities with equal neighbours
     /// and −0.
