@@ -62,6 +62,9 @@ var<workgroup> red: array<real, WG>;
 // The local refinement: some contact is near a crossing in this step.
 var<workgroup> nears: atomic<u32>;
 var<workgroup> near_any: u32;
+// The next group's first contact, and its region (first contact, a, b).
+var<workgroup> next_group: atomic<u32>;
+var<workgroup> region_at: vec3<u32>;
 
 // LOCAL (the prelude's, with LV): the chain's velocities and excess forces
 // live in workgroup memory for the whole dispatch (loaded at its start,
@@ -427,28 +430,42 @@ fn hermite_at(d: array<real, 6>, h: real, th: real) -> real {
 }
 
 // step::redo: beads a .. b (contacts a ..= b) of the step from t0 by h
-// (last substep at t_end) redone as H.msteps finer steps, by one invocation.
+// (last substep at t_end) redone as H.msteps finer steps, by the whole
+// workgroup (called in uniform control flow, a and b the same in every
+// invocation). For the region, contact and bead k are invocation
+// (k − a) mod WG's: each reads and writes its own p, a and scratch, and
+// the stages, which share v and e, are separated by sync(). The left
+// outside bead (its interpolant, the boundary contact's impulse ja, its
+// fix) is contact a's invocation's (invocation 0), the right one contact
+// b's: per bead and contact the same operations in the same order as
+// step::redo (the kinks by contact, as `kinks` takes them: each contact's
+// share to its right bead, then to its left one).
 fn redo(a: u32, b: u32, t0: real, h: real, t_end: real, lo: u32, hi: u32) {
     let n = H.n;
     let zero = real(0.0);
     let half = real(0.5);
-    // The outside beads' interpolants, from the step's end as it was.
     let left = a > lo;
     let right = b < hi;
+    // Who holds the boundary contacts a and b.
+    let ha = me == 0u;
+    let hb = me == (b - a) % WG;
     let on = (H.flags & F_PULSE) != 0u && r_lt(t0, R[H.sc + SC_PULSE_DURATION]);
+    // The outside beads' interpolants, from the step's end as it was.
     var ql = array<real, 6>(zero, zero, zero, zero, zero, zero);
     var qr = array<real, 6>(zero, zero, zero, zero, zero, zero);
-    if (left) {
+    if (left && ha) {
         ql = hermite(bead_rates(a - 1u, true, t0, on, lo, hi), bead_rates(a - 1u, false, t_end, on, lo, hi), h);
     }
-    if (right) {
+    if (right && hb) {
         qr = hermite(bead_rates(b, true, t0, on, lo, hi), bead_rates(b, false, t_end, on, lo, hi), h);
     }
-    for (var j = a; j <= b; j++) {
+    // (qr read v_{b−1}, which its holder restores.)
+    sync();
+    for (var j = a + me; j <= b; j += WG) {
         R[H.o_p + j] = R[H.o_ps + j];
         set_e(j, r_sub(hertz(R[H.o_k + j], r_add(R[H.o_d0 + j], R[H.o_p + j])), R[H.o_f0 + j]));
     }
-    for (var i = a; i < b; i++) {
+    for (var i = a + me; i < b; i += WG) {
         set_v(i, R[H.o_vs + i]);
         R[H.o_a + i] = R[H.o_as + i];
     }
@@ -456,7 +473,6 @@ fn redo(a: u32, b: u32, t0: real, h: real, t_end: real, lo: u32, hi: u32) {
     let hf = r_mul(h, inv_m);
     let s = H.stages;
     let pforce = R[H.sc + SC_PULSE_FORCE];
-    let omega = R[H.sc + SC_OMEGA];
     let pulse = on && H.pulse_bead >= a && H.pulse_bead < b;
     var ja = zero;
     var jb = zero;
@@ -464,14 +480,18 @@ fn redo(a: u32, b: u32, t0: real, h: real, t_end: real, lo: u32, hi: u32) {
     var xb = zero;
     var th = zero;
     for (var f = 0u; f < H.msteps; f++) {
-        for (var j = a; j <= b; j++) {
+        for (var j = a + me; j <= b; j += WG) {
             R[H.o_ps + j] = R[H.o_p + j];
         }
         var t = r_add(t0, r_mul(r_count(f, 0u), hf));
         let c0 = r_mul(r_mul(half, wts[0]), hf);
-        ja = r_add(ja, r_mul(c0, E(a)));
-        jb = r_add(jb, r_mul(c0, E(b)));
-        for (var i = a; i < b; i++) {
+        if (ha) {
+            ja = r_add(ja, r_mul(c0, E(a)));
+        }
+        if (hb) {
+            jb = r_add(jb, r_mul(c0, E(b)));
+        }
+        for (var i = a + me; i < b; i += WG) {
             set_v(i, r_add(V(i), r_mul(c0, R[H.o_a + i])));
         }
         for (var k = 0u; k < s; k++) {
@@ -480,17 +500,19 @@ fn redo(a: u32, b: u32, t0: real, h: real, t_end: real, lo: u32, hi: u32) {
             th = r_add(th, r_mul(wj, inv_m));
             var da = zero;
             var db = zero;
-            if (left) {
+            if (left && ha) {
                 let x = hermite_at(ql, h, th);
                 da = r_sub(x, xa);
                 xa = x;
             }
-            if (right) {
+            if (right && hb) {
                 let x = hermite_at(qr, h, th);
                 db = r_sub(x, xb);
                 xb = x;
             }
-            for (var j = a; j <= b; j++) {
+            // The kicks before have moved the beads the drift reads.
+            sync();
+            for (var j = a + me; j <= b; j += WG) {
                 let p = R[H.o_p + j];
                 if (j == 0u) {
                     R[H.o_p] = r_sub(p, r_mul(dt, V(0u)));
@@ -503,41 +525,57 @@ fn redo(a: u32, b: u32, t0: real, h: real, t_end: real, lo: u32, hi: u32) {
                 } else {
                     R[H.o_p + j] = r_add(p, r_mul(dt, r_sub(V(j - 1u), V(j))));
                 }
-            }
-            t = r_add(t, dt);
-            for (var j = a; j <= b; j++) {
                 set_e(j, r_sub(hertz(R[H.o_k + j], r_add(R[H.o_d0 + j], R[H.o_p + j])), R[H.o_f0 + j]));
             }
-            for (var i = a; i < b; i++) {
-                R[H.o_a + i] = r_mul(r_sub(E(i), E(i + 1u)), R[H.o_im + i]);
-            }
-            if (pulse) {
-                let fp = r_mul(pforce, push_sin(t));
-                R[H.o_a + H.pulse_bead] = r_add(R[H.o_a + H.pulse_bead], r_mul(fp, R[H.sc + SC_PULSE_IM]));
-            }
+            t = r_add(t, dt);
+            // The accelerations read the next contact's force.
+            sync();
             let kc = kick_weight(k, hf);
-            ja = r_add(ja, r_mul(kc, E(a)));
-            jb = r_add(jb, r_mul(kc, E(b)));
-            for (var i = a; i < b; i++) {
-                set_v(i, r_add(V(i), r_mul(kc, R[H.o_a + i])));
+            for (var i = a + me; i < b; i += WG) {
+                var acc = r_mul(r_sub(E(i), E(i + 1u)), R[H.o_im + i]);
+                if (pulse && i == H.pulse_bead) {
+                    let fp = r_mul(pforce, push_sin(t));
+                    acc = r_add(acc, r_mul(fp, R[H.sc + SC_PULSE_IM]));
+                }
+                R[H.o_a + i] = acc;
+                set_v(i, r_add(V(i), r_mul(kc, acc)));
+            }
+            if (ha) {
+                ja = r_add(ja, r_mul(kc, E(a)));
+            }
+            if (hb) {
+                jb = r_add(jb, r_mul(kc, E(b)));
             }
         }
-        for (var i = a; i < b; i++) {
-            kink_bead(i, hf);
+        // kink_bead for beads a .. b, by contact: the right bead's share,
+        // then (after a barrier) the left one's.
+        for (var j = a + me; j < b; j += WG) {
+            if (crossed(j)) {
+                set_v(j, r_add(V(j), r_mul(miss(j, hf), R[H.o_im + j])));
+            }
         }
-        if (crossed(a)) {
+        sync();
+        for (var j = a + 1u + me; j <= b; j += WG) {
+            if (crossed(j)) {
+                set_v(j - 1u, r_sub(V(j - 1u), r_mul(miss(j, hf), R[H.o_im + j - 1u])));
+            }
+        }
+        if (ha && crossed(a)) {
             ja = r_add(ja, miss(a, hf));
         }
-        if (crossed(b)) {
+        if (hb && crossed(b)) {
             jb = r_add(jb, miss(b, hf));
         }
+        // The next kick is of beads the left shares moved.
+        sync();
     }
-    if (left) {
+    if (left && ha) {
         fix_outside(a - 1u, r_sub(R[H.o_imp + a], ja), on, t_end);
     }
-    if (right) {
+    if (right && hb) {
         fix_outside(b, r_sub(jb, R[H.o_imp + b]), on, t_end);
     }
+    sync();
 }
 
 // step::redo's last part for an outside bead i: the impulse dv, then its
@@ -553,8 +591,11 @@ fn fix_outside(i: u32, dv: real, on: bool, t_end: real) {
 }
 
 // step::refine_near, in parallel: every contact near a crossing flagged,
-// then the invocation holding the first contact of each group redoes the
-// group's region (regions never touch: Refine).
+// then the groups' regions one after another in the order of their first
+// contacts, each redone by the whole workgroup (`redo`; regions never
+// touch, so the CPU's order is the same bits): each round every
+// invocation offers its first contact from `past` on that starts
+// a group, the least is the next region.
 fn refine_near(lo: u32, hi: u32, t0: real, h: real, t_end: real) {
     for (var j = lo + me; j <= hi; j += WG) {
         if (crossed(j)) {
@@ -579,42 +620,70 @@ fn refine_near(lo: u32, hi: u32, t0: real, h: real, t_end: real) {
     storageBarrier();
     let l = H.reach;
     let gap = 2u * l + 2u;
-    for (var j = lo + me; j <= hi; j += WG) {
-        if (!r_nz(R[H.o_fl + j])) {
-            continue;
+    var past = lo;
+    loop {
+        if (me == 0u) {
+            atomicStore(&next_group, NONE);
         }
-        var first = true;
-        let back = select(lo, j - gap, j >= lo + gap);
-        for (var q = back; q < j; q++) {
-            if (r_nz(R[H.o_fl + q])) {
-                first = false;
+        workgroupBarrier();
+        for (var j = lo + me; j <= hi; j += WG) {
+            if (j >= past && starts_group(j, lo, gap)) {
+                atomicMin(&next_group, j);
+                break;
             }
         }
-        if (!first) {
-            continue;
-        }
-        var last = j;
-        var grew = true;
-        while (grew) {
-            grew = false;
-            let to = min(last + gap, hi);
-            for (var q = last + 1u; q <= to; q++) {
-                if (r_nz(R[H.o_fl + q])) {
-                    last = q;
-                    grew = true;
+        workgroupBarrier();
+        if (me == 0u) {
+            let j = atomicLoad(&next_group);
+            var r = vec3<u32>(NONE, 0u, 0u);
+            if (j != NONE) {
+                // The group: near contacts at most `gap` apart.
+                var last = j;
+                var grew = true;
+                while (grew) {
+                    grew = false;
+                    let to = min(last + gap, hi);
+                    for (var q = last + 1u; q <= to; q++) {
+                        if (r_nz(R[H.o_fl + q])) {
+                            last = q;
+                            grew = true;
+                        }
+                    }
+                }
+                r = vec3<u32>(j, select(lo, j - l, j >= lo + l), min(last + l, hi));
+                if (r.z > r.y) {
+                    atomicAdd(&regions, 1u);
+                    atomicAdd(&region_beads, r.z - r.y);
                 }
             }
+            region_at = r;
         }
-        let a = select(lo, j - l, j >= lo + l);
-        let b = min(last + l, hi);
-        if (b > a) {
-            atomicAdd(&regions, 1u);
-            atomicAdd(&region_beads, b - a);
-            redo(a, b, t0, h, t_end, lo, hi);
+        let r = workgroupUniformLoad(&region_at);
+        if (r.x == NONE) {
+            break;
         }
+        if (r.z > r.y) {
+            redo(r.y, r.z, t0, h, t_end, lo, hi);
+        }
+        past = r.x + 1u;
     }
     storageBarrier();
     workgroupBarrier();
+}
+
+// Whether near contact j is the first of its group: no near contact in
+// the `gap` before it.
+fn starts_group(j: u32, lo: u32, gap: u32) -> bool {
+    if (!r_nz(R[H.o_fl + j])) {
+        return false;
+    }
+    let back = select(lo, j - gap, j >= lo + gap);
+    for (var q = back; q < j; q++) {
+        if (r_nz(R[H.o_fl + q])) {
+            return false;
+        }
+    }
+    return true;
 }
 
 // step::step_portable from st.t0 by st.h over the window st.lo .. st.hi.

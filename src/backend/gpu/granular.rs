@@ -450,11 +450,12 @@ fn loops_per_step(job: &ChainJob, wg: u32) -> usize {
     // kick, shrink scan, snapshots (3), checks (2); per stage drift, forces,
     // accelerations and the pulse's sine (10); observers' cosines (10 each).
     let base = 1 + 6 * strides + s * (3 * strides + 11) + probes * 11 + 10 + wg as usize + 16;
-    // The local refinement: the copies and flags (4), the group scans, and
-    // as if one region of 2·reach + 1 beads were redone every step.
+    // The local refinement: the copies and flags (4), the group scans (one
+    // a round: the region's and the last), and as if one region of
+    // 2·reach + 1 beads were redone every step.
     let refine = job.plan.substeps().refine.map_or(0, |r| {
         let beads = 2 * r.reach + 1;
-        4 * strides + 4 * beads + r.steps * (s * (3 * beads + 16) + 2 * beads + 4)
+        6 * strides + 4 * beads + r.steps * (s * (3 * beads + 16) + 2 * beads + 4)
     });
     // A damped chain: per stage a second drift, the drag twice and three
     // sweeps of dashpots; the closing corrections after the step.
