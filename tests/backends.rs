@@ -1345,8 +1345,10 @@ fn gpu_profiles_parse_with_clear_errors() {
 /// stop time and the default end at the far peak, the local refinement
 /// (with the pulse on in a region), chains shorter and
 /// longer than a workgroup (64 invocations striding over 200 beads), a
-/// piston, a piston with a pulse, a drive, an invalid chain passed through, the caps (a step cap mid-run), and a part
-/// of 10^4-bead chains whose reals go up and come back in several groups.
+/// piston, a piston with a pulse, a drive, an invalid chain passed through, the caps (a step cap mid-run), a part
+/// of 10^4-bead chains whose reals go up and come back in several groups,
+/// and more observers than invocations (each takes one, chains.wgsl's
+/// `watch_see`).
 #[test]
 fn gpu_chain_kernel_gives_the_cpus_chain_outcomes() {
     use hertz_cradle::engine::granular::ChainOutcome;
@@ -1367,6 +1369,7 @@ fn gpu_chain_kernel_gives_the_cpus_chain_outcomes() {
         .iter()
         .map(|text| Some(chain_job(text, Precision::F64)))
         .collect();
+
     // A step cap mid-run (and a count that crosses a dispatch).
     let mut capped = jobs[0].clone().unwrap();
     capped.plan.max_steps = 777;
@@ -1423,6 +1426,15 @@ fn gpu_chain_kernel_gives_the_cpus_chain_outcomes() {
         let text = long.replace("10.0", &format!("{}", 1.0 + k as f64));
         jobs.push(Some(chain_job(&text, Precision::F64)));
     }
+    // Every bead a probe, struck against a wall (the run ends at its first
+    // peak): more observers (62 probes, the far end, two walls' places)
+    // than the 64 invocations that each take one; the right wall's watch
+    // is invocation 0's second.
+    let watched = format!(
+        "balls = 62\nradius = 0.005\n[walls]\nright = true\n[launch]\nballs = 1\nvelocity = 0.1\n[probes]\nbeads = [{}]\n",
+        (0..62).map(|i| i.to_string()).collect::<Vec<_>>().join(", ")
+    );
+    jobs.push(Some(chain_job(&watched, Precision::F64)));
     let source = |k: usize| Ok(jobs[k].clone());
     let cpu = Cpu.run_chains(jobs.len(), &source).unwrap();
     let gpu = g.run_chains(jobs.len(), &source).unwrap();
@@ -1461,6 +1473,9 @@ fn gpu_chain_kernel_gives_the_cpus_chain_outcomes() {
         }
     }
     let status = |o: &ChainOutcome| o.status;
+    let last = gpu.last().unwrap();
+    assert_eq!((last.status, last.probes.len()), (Status::Ok, 62));
+    assert!(last.right_wall.as_ref().is_some_and(|w| w.peak_force > 0.0));
     assert_eq!(status(&gpu[1]), Status::Invalid);
     assert_eq!(status(&gpu[5]), Status::StepCap);
     assert_eq!(gpu[5].steps, 777);

@@ -3,9 +3,10 @@
 // (bead i is invocation i mod WG's, so a chain of any length works and
 // neighbouring invocations touch neighbouring words). Twin of
 // src/engine/granular/step.rs (the step and its window), run.rs (the loop:
-// the end tests, the checks every CHECK_EVERY steps) and observe.rs (the
-// observers, run by invocation 0 between steps): the same operations in the
-// same order per bead and per contact. What the CPU's loops accumulate over
+// the end tests, the checks every CHECK_EVERY steps, run by invocation 0
+// between steps) and observe.rs (the observers, each probe's, the far
+// end's and each wall's by an invocation of its own between steps): the
+// same operations in the same order per bead, per contact and per observer. What the CPU's loops accumulate over
 // the chain are reductions here that are exact in any order (the first and
 // last moving bead, the largest overlap ratio, "some velocity is not
 // finite"). The host (src/backend/gpu/granular.rs) starts each chain as the
@@ -65,6 +66,9 @@ var<workgroup> near_any: u32;
 // The next group's first contact, and its region (first contact, a, b).
 var<workgroup> next_group: atomic<u32>;
 var<workgroup> region_at: vec3<u32>;
+// Whether the last probe's velocity took a new record peak in the step
+// (`watch_see`, for `after_step`).
+var<workgroup> last_taken: u32;
 
 // LOCAL (the prelude's, with LV): the chain's velocities and excess forces
 // live in workgroup memory for the whole dispatch (loaded at its start,
@@ -73,8 +77,9 @@ var<workgroup> region_at: vec3<u32>;
 // array is read and written by the invocation that owns the index within
 // the step (bead and contact k: invocation (k − lo) mod WG), so the stages
 // are separated by workgroup barriers, not device-scope storage barriers.
-// One storage barrier a step remains, before the observers (invocation 0
-// reads other beads' p and a) and the window's move (ownership changes).
+// One storage barrier a step remains, before the observers (they read
+// other beads' p and a) and the window's move (ownership changes), and one
+// after them (invocation 0's bookkeeping reads what they wrote).
 // Chains longer than LV − 1 beads take the global path (LOCAL false).
 var<workgroup> wv: array<real, LV>;
 var<workgroup> we: array<real, LV>;
@@ -801,7 +806,7 @@ fn wall_kick(c: real) {
     R[H.sc + SC_WALL_IMP] = r_add(R[H.sc + SC_WALL_IMP], r_mul(c, wall));
 }
 
-// ---- the observers (observe.rs): invocation 0 ----
+// ---- the observers (observe.rs): each by an invocation of its own ----
 
 // observe::closing: δ̇ of contact j, v_{j−1} − v_j (the right wall stands
 // still, the left one moves at SC_PISTON).
@@ -1087,57 +1092,62 @@ fn amp_see(o: u32, t: real, v: real) {
     }
 }
 
-// run::Watch::see at t; returns SNAP_WIDTH when the last probe's velocity
-// took a new record peak in this step.
-fn watch_see(t: real) -> u32 {
+// run::Watch::see at t, its observers spread over the invocations (each
+// observer's state is its own, so their order changes no bit); the last
+// probe's holder sets last_taken when its velocity took a new record peak
+// in this step.
+fn watch_see(t: real) {
     let n = H.n;
-    var snaps = 0u;
     let floor_v = R[H.sc + SC_FLOOR_V];
     let floor_f = R[H.sc + SC_FLOOR_F];
-    for (var k = 0u; k < H.probes; k++) {
-        let i = probe_beads[H.probe_at + k];
-        let vo = H.o_watch + PROBE_REALS * k;
-        let fo = vo + FIRST_PEAK_REALS;
-        let ac = accs(i);
-        let fl = force_rates(i, r_sub(ac[0], ac[1]));
-        let fr = force_rates(i + 1u, r_sub(ac[1], ac[2]));
-        let qv = bead_rates_with(i, t, fl.y, fr.y, ac);
-        let taken = first_peak_see_leading(vo, t, qv, floor_v);
-        if ((H.flags & F_PISTON) != 0u) {
-            rise_see(H.o_rise + RISE_REALS * k, t, qv, R[H.sc + SC_RISE_LEVEL]);
+    // Task k of the probes' count + 3: probe k, then the far end, the
+    // left wall, the right wall.
+    for (var k = me; k < H.probes + 3u; k += WG) {
+        let far = H.o_watch + PROBE_REALS * H.probes;
+        if (k < H.probes) {
+            let i = probe_beads[H.probe_at + k];
+            let vo = H.o_watch + PROBE_REALS * k;
+            let fo = vo + FIRST_PEAK_REALS;
+            let ac = accs(i);
+            let fl = force_rates(i, r_sub(ac[0], ac[1]));
+            let fr = force_rates(i + 1u, r_sub(ac[1], ac[2]));
+            let qv = bead_rates_with(i, t, fl.y, fr.y, ac);
+            let taken = first_peak_see_leading(vo, t, qv, floor_v);
+            if ((H.flags & F_PISTON) != 0u) {
+                rise_see(H.o_rise + RISE_REALS * k, t, qv, R[H.sc + SC_RISE_LEVEL]);
+            }
+            if ((H.flags & F_DRIVE) != 0u) {
+                amp_see(H.o_amp + AMP_REALS * k, t, qv.x);
+            }
+            let base = r_mul(real(0.5), r_add(R[H.o_f0 + i], R[H.o_f0 + i + 1u]));
+            let q = Q(
+                r_sub(r_mul(real(0.5), r_add(fl.x, fr.x)), base),
+                r_mul(real(0.5), r_add(fl.y, fr.y)),
+                r_mul(real(0.5), r_add(fl.z, fr.z)),
+            );
+            first_peak_see_leading(fo, t, q, floor_f);
+            if (k + 1u == H.probes) {
+                last_taken = select(0u, 1u, taken);
+            }
+        } else if (k == H.probes) {
+            if ((H.flags & F_RIGHT) != 0u) {
+                let f = force_rates(n, r_sub(acc_at(n - 1u), real(0.0)));
+                first_peak_see(far, t, Q(r_sub(f.x, R[H.o_f0 + n]), f.y, f.z), floor_f);
+            } else {
+                let ac = accs(n - 1u);
+                let fl = force_rates(n - 1u, r_sub(ac[0], ac[1]));
+                let fr = force_rates(n, r_sub(ac[1], ac[2]));
+                first_peak_see(far, t, bead_rates_with(n - 1u, t, fl.y, fr.y, ac), floor_v);
+            }
+        } else if (k == H.probes + 1u) {
+            if (r_gt(R[H.o_k], real(0.0))) {
+                wall_see(far + FIRST_PEAK_REALS, t, force_rates(0u, r_sub(real(0.0), acc_at(0u))), R[H.o_f0]);
+            }
+        } else if (r_gt(R[H.o_k + n], real(0.0))) {
+            let fw = force_rates(n, r_sub(acc_at(n - 1u), real(0.0)));
+            wall_see(far + FIRST_PEAK_REALS + WALL_WATCH_REALS, t, fw, R[H.o_f0 + n]);
         }
-        if ((H.flags & F_DRIVE) != 0u) {
-            amp_see(H.o_amp + AMP_REALS * k, t, qv.x);
-        }
-        let base = r_mul(real(0.5), r_add(R[H.o_f0 + i], R[H.o_f0 + i + 1u]));
-        let q = Q(
-            r_sub(r_mul(real(0.5), r_add(fl.x, fr.x)), base),
-            r_mul(real(0.5), r_add(fl.y, fr.y)),
-            r_mul(real(0.5), r_add(fl.z, fr.z)),
-        );
-        first_peak_see_leading(fo, t, q, floor_f);
-        if (k + 1u == H.probes && taken) {
-            snaps = SNAP_WIDTH;
-        }
     }
-    let far = H.o_watch + PROBE_REALS * H.probes;
-    if (r_gt(R[H.o_k], real(0.0))) {
-        wall_see(far + FIRST_PEAK_REALS, t, force_rates(0u, r_sub(real(0.0), acc_at(0u))), R[H.o_f0]);
-    }
-    if (r_gt(R[H.o_k + n], real(0.0))) {
-        let fw = force_rates(n, r_sub(acc_at(n - 1u), real(0.0)));
-        wall_see(far + FIRST_PEAK_REALS + WALL_WATCH_REALS, t, fw, R[H.o_f0 + n]);
-    }
-    if ((H.flags & F_RIGHT) != 0u) {
-        let f = force_rates(n, r_sub(acc_at(n - 1u), real(0.0)));
-        first_peak_see(far, t, Q(r_sub(f.x, R[H.o_f0 + n]), f.y, f.z), floor_f);
-    } else {
-        let ac = accs(n - 1u);
-        let fl = force_rates(n - 1u, r_sub(ac[0], ac[1]));
-        let fr = force_rates(n, r_sub(ac[1], ac[2]));
-        first_peak_see(far, t, bead_rates_with(n - 1u, t, fl.y, fr.y, ac), floor_v);
-    }
-    return snaps;
 }
 
 // ---- the loop (run.rs): invocation 0 between steps ----
@@ -1247,7 +1257,8 @@ fn after_step(st: Step) {
     }
     let t = st.t1;
     R[sc + SC_T] = t;
-    var snaps = watch_see(t);
+    // (The observers have seen the step: `watch_see`, before this.)
+    var snaps = select(0u, SNAP_WIDTH, H.probes > 0u && last_taken != 0u);
     if ((snaps & SNAP_WIDTH) != 0u) {
         hd.wlo = lo;
         hd.whi = hi;
@@ -1335,6 +1346,10 @@ fn main(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) 
             // step's window gives beads new owners.
             storageBarrier();
         }
+        workgroupBarrier();
+        watch_see(st.t1);
+        // after_step and top read what the observers wrote.
+        storageBarrier();
         workgroupBarrier();
         if (me == 0u) {
             after_step(st);
