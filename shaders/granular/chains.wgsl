@@ -464,7 +464,7 @@ fn redo(a: u32, b: u32, t0: real, h: real, t_end: real, lo: u32, hi: u32) {
     if (right && hb) {
         qr = hermite(bead_rates(b, true, t0, on, lo, hi), bead_rates(b, false, t_end, on, lo, hi), h);
     }
-    // (qr read v_{b−1}, which its holder restores.)
+    // (qr reads v_{b−1}, which its holder restores: a barrier first.)
     sync();
     for (var j = a + me; j <= b; j += WG) {
         R[H.o_p + j] = R[H.o_ps + j];
