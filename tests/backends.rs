@@ -1369,7 +1369,6 @@ fn gpu_chain_kernel_gives_the_cpus_chain_outcomes() {
         .iter()
         .map(|text| Some(chain_job(text, Precision::F64)))
         .collect();
-
     // A step cap mid-run (and a count that crosses a dispatch).
     let mut capped = jobs[0].clone().unwrap();
     capped.plan.max_steps = 777;

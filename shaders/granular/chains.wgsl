@@ -443,8 +443,7 @@ fn hermite_at(d: array<real, 6>, h: real, th: real) -> real {
 // outside bead (its interpolant, the boundary contact's impulse ja, its
 // fix) is contact a's invocation's (invocation 0), the right one contact
 // b's: per bead and contact the same operations in the same order as
-// step::redo (the kinks by contact, as `kinks` takes them: each contact's
-// share to its right bead, then to its left one).
+// step::redo.
 fn redo(a: u32, b: u32, t0: real, h: real, t_end: real, lo: u32, hi: u32) {
     let n = H.n;
     let zero = real(0.0);
@@ -552,19 +551,9 @@ fn redo(a: u32, b: u32, t0: real, h: real, t_end: real, lo: u32, hi: u32) {
                 jb = r_add(jb, r_mul(kc, E(b)));
             }
         }
-        // kink_bead for beads a .. b, by contact: the right bead's share,
-        // then (after a barrier) the left one's.
-        for (var j = a + me; j < b; j += WG) {
-            if (crossed(j)) {
-                set_v(j, r_add(V(j), r_mul(miss(j, hf), R[H.o_im + j])));
-            }
-        }
-        sync();
-        for (var j = a + 1u + me; j <= b; j += WG) {
-            if (crossed(j)) {
-                set_v(j - 1u, r_sub(V(j - 1u), r_mul(miss(j, hf), R[H.o_im + j - 1u])));
-            }
-        }
+        // The kinks of beads a .. b, as the step takes its window's (the
+        // region's owners are kinks' with lo = a).
+        kinks(a, b, hf);
         if (ha && crossed(a)) {
             ja = r_add(ja, miss(a, hf));
         }
@@ -1102,8 +1091,8 @@ fn watch_see(t: real) {
     let floor_f = R[H.sc + SC_FLOOR_F];
     // Task k of the probes' count + 3: probe k, then the far end, the
     // left wall, the right wall.
+    let far = H.o_watch + PROBE_REALS * H.probes;
     for (var k = me; k < H.probes + 3u; k += WG) {
-        let far = H.o_watch + PROBE_REALS * H.probes;
         if (k < H.probes) {
             let i = probe_beads[H.probe_at + k];
             let vo = H.o_watch + PROBE_REALS * k;
