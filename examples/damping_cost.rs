@@ -1,6 +1,9 @@
 //! The cost of damping on chains (issue #45; results/chains.md, "Damping,
-//! pistons, drives"): a 1,000-bead steel chain struck at one end, at a fixed
-//! step, undamped and with each kind of damping, the window the whole chain
+//! pistons, drives"): a 1,000-bead steel chain struck at one end (free, or
+//! precompressed between walls), or precompressed with every bead moving
+//! from the start (its window the whole chain, every contact closed and
+//! moving: the damping's worst case per bead-step), at a fixed step,
+//! undamped and with each kind of damping, the window the whole chain
 //! (`run_with(.., whole = true)`: every bead stepped, so the time per
 //! bead-step compares the step's own work, beads at rest ahead of the wave
 //! included) and as a run windows it (the beads near the wave: what a user
@@ -41,7 +44,24 @@ fn main() {
         },
     };
     let filter = std::env::args().nth(2).unwrap_or_default();
-    let base = |extra: &str, pre: bool| {
+    // Every bead of the third chain moving from the start (its window the
+    // whole chain, every contact closed and moving: the damping's worst
+    // case per bead-step): speeds uniform in ±0.01 m/s from a fixed
+    // xorshift, written out to 6 decimals.
+    let mut x = 0x9e37_79b9_7f4a_7c15_u64;
+    let speeds: Vec<String> = (0..1000)
+        .map(|_| {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            format!(
+                "{:.6}",
+                ((x >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * 0.02
+            )
+        })
+        .collect();
+    let moving = format!("velocity = [{}]\n", speeds.join(", "));
+    let base = |extra: &str, chain: usize| {
         // `extra`'s first line, if it names the split, goes in [solver].
         let (split, extra) = match extra.strip_prefix("damping_split") {
             Some(rest) => rest.split_once('\n').unwrap(),
@@ -52,14 +72,17 @@ fn main() {
         } else {
             format!("damping_split{split}\n")
         };
+        // Per-bead velocities are top-level keys, before any table.
+        let walls = "[walls]\nleft = true\nright = true\nprecompression = 10.0\n";
+        let launch = "[launch]\nballs = 1\nvelocity = 0.1\n";
+        let (top, walls, launch) = match chain {
+            0 => ("", "", launch),
+            1 => ("", walls, launch),
+            _ => (moving.as_str(), walls, ""),
+        };
         format!(
-            "balls = 1000\nradius = 0.005\n{}[launch]\nballs = 1\nvelocity = 0.1\n[probes]\nbeads = [250, 750]\n\
-             [solver]\ndt = 2e-7\n{split}[stop]\nduration = 4e-3\n{extra}",
-            if pre {
-                "[walls]\nleft = true\nright = true\nprecompression = 10.0\n"
-            } else {
-                ""
-            }
+            "balls = 1000\nradius = 0.005\n{top}{walls}{launch}[probes]\nbeads = [250, 750]\n\
+             [solver]\ndt = 2e-7\n{split}[stop]\nduration = 4e-3\n{extra}"
         )
     };
     println!("| chain | damping | ns per bead-step (whole chain) | × undamped | run, windowed (s) | × undamped | mean window (beads) | ns per bead-step (window) | × undamped | run, window of exact rest (s) | its mean window |");
@@ -91,19 +114,19 @@ fn main() {
             "damping_split = \"ends\"\n[damping]\nair_drag = 10.0\n",
         ),
     ];
-    for pre in [false, true] {
-        let chain = if pre {
-            "precompressed 10 N"
-        } else {
-            "uncompressed"
-        };
+    let chains = [
+        "uncompressed",
+        "precompressed 10 N",
+        "precompressed 10 N, every bead moving",
+    ];
+    for (which, chain) in chains.into_iter().enumerate() {
         // The chain's runs: undamped first, then the dampings the filter
         // keeps.
         let cases: Vec<_> = dampings
             .iter()
             .filter(|(name, _)| *name == "none" || format!("{chain}: {name}").contains(&filter))
             .map(|&(name, extra)| {
-                let s = Scene::from_toml_str("cost", &base(extra, pre)).unwrap();
+                let s = Scene::from_toml_str("cost", &base(extra, which)).unwrap();
                 let b = Beads::from_scene(&s);
                 let solver = Solver::resolve(&s, &Overrides::default()).unwrap();
                 let whole = granular::plan(&b, &solver, None);
