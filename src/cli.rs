@@ -51,7 +51,7 @@ pub enum Command {
         #[command(flatten)]
         solver: SolverFlags,
     },
-    /// Run every scene of a sweep file and write one CSV row per scene.
+    /// Run every scene of a sweep file and write one table row per scene (CSV or Parquet).
     #[command(
         after_help = "Examples:\n  cradle sweep examples/mass_gap.toml --out results/mass_gap.csv\n  cradle sweep big.toml --out big.csv --resume\n  cradle sweep big.toml --out part2.csv --shard 2/4   # then: cradle merge part*.csv --out big.csv"
     )]

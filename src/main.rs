@@ -39,7 +39,8 @@ fn main() -> ExitCode {
 }
 
 /// A flag set by the first Ctrl-C (or SIGTERM, SIGHUP): the sweep stops
-/// after the batches in hand, keeping every row written. A second one
+/// once the scenes running finish (no scene or chain starts after it),
+/// keeping the rows of every batch finished. A second one
 /// ends the process at once (exit 130; `--resume` still continues).
 fn stop_on_signal() -> std::sync::Arc<std::sync::atomic::AtomicBool> {
     use std::sync::atomic::{AtomicBool, Ordering};
@@ -50,7 +51,7 @@ fn stop_on_signal() -> std::sync::Arc<std::sync::atomic::AtomicBool> {
             std::process::exit(130);
         }
         eprintln!(
-            "\ncradle: stopping after the scenes in hand (press Ctrl-C again to stop at once)"
+            "\ncradle: stopping once the scenes running finish (press Ctrl-C again to stop at once)"
         );
     });
     if let Err(e) = handler {

@@ -571,6 +571,44 @@ fn gpu_matches_cpu_on_pendulums_and_damping() {
     }
 }
 
+/// An interrupt stops a CPU batch in hand (`run_until`, `run_chains_until`:
+/// the sweep's Ctrl-C): with the flag set no scene or chain starts and the
+/// call says `Interrupted`; with it clear the outcomes are `run`'s, field
+/// for field.
+#[test]
+fn cpu_batches_stop_when_asked_and_are_the_same_when_not() {
+    use hertz_cradle::error::Interrupted;
+    use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+    let (set, clear) = (AtomicBool::new(true), AtomicBool::new(false));
+    let jobs = batch(Precision::F64);
+    let e = Cpu.run_until(&jobs, &set).unwrap_err();
+    assert!(e.downcast_ref::<Interrupted>().is_some(), "{e:#}");
+    let (all, until) = (
+        Cpu.run(&jobs).unwrap(),
+        Cpu.run_until(&jobs, &clear).unwrap(),
+    );
+    assert_eq!(format!("{all:?}"), format!("{until:?}"));
+    let job = chain_job(
+        "balls = 30\nradius = 0.005\n[launch]\nballs = 1\nvelocity = 0.1\n",
+        Precision::F64,
+    );
+    let built = AtomicUsize::new(0);
+    let source = |_: usize| {
+        built.fetch_add(1, Ordering::SeqCst);
+        Ok(Some(job.clone()))
+    };
+    let e = Cpu.run_chains_until(6, &source, &set).unwrap_err();
+    assert!(e.downcast_ref::<Interrupted>().is_some(), "{e:#}");
+    assert_eq!(
+        built.load(Ordering::SeqCst),
+        0,
+        "a chain was built after the stop"
+    );
+    let all = Cpu.run_chains(6, &source).unwrap();
+    let until = Cpu.run_chains_until(6, &source, &clear).unwrap();
+    assert_eq!(format!("{all:?}"), format!("{until:?}"));
+}
+
 /// The CPU integrates a batch side by side in SIMD lanes (refilled as runs
 /// end, narrowed for the last ones); every lane must do exactly what a chain
 /// run alone does: every field of every outcome bit-identical, in both

@@ -325,6 +325,56 @@ fn ctrl_c_keeps_the_rows_says_how_to_continue_and_resume_completes_them() {
     }
 }
 
+/// Ctrl-C while a batch is in hand stops that batch too, not only the next
+/// ones: 40 64-ball cradles (~3 s on one thread) are one batch, so before,
+/// an interrupt waited for all of them and still left the run partial. Now
+/// the batch stops after the few scenes running (its rows are not kept: a
+/// batch is written whole), the run says 0 of 40 are kept and exits 130, and
+/// `--resume` completes the bytes of an uninterrupted run.
+#[test]
+fn ctrl_c_stops_the_batch_in_hand() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let sw = d.join("heavy.toml");
+    fs::write(
+        &sw,
+        "[scene]\nballs = 64\n[scene.launch]\nballs = 1\nvelocity = 1.0\n\
+         [[axis]]\nparam = \"launch.velocity\"\nlinspace = [0.5, 1.5, 40]\n",
+    )
+    .unwrap();
+    let (out, partial) = (d.join("h.csv"), d.join("h.csv.partial"));
+    let child = Std::new(assert_cmd::cargo::cargo_bin("cradle"))
+        .args(["sweep", s(&sw), "--out", s(&out), "--backend", "cpu"])
+        .args(["--threads", "1"])
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let t0 = Instant::now();
+    while !partial.exists() && t0.elapsed() < Duration::from_secs(60) {
+        std::thread::sleep(Duration::from_millis(2));
+    }
+    let killed = Std::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(killed.success());
+    let o = child.wait_with_output().unwrap();
+    let e = stderr(&o);
+    assert_eq!(o.status.code(), Some(130), "{e}");
+    assert!(!out.exists(), "an interrupted run must not look complete");
+    assert!(
+        e.contains(&format!(
+            "interrupted: 0 of 40 scenes are kept in {}.partial",
+            out.display()
+        )),
+        "{e}"
+    );
+    ok(&on_cpu(&sw, &out, &["--resume"]));
+    let reference = d.join("ref.csv");
+    ok(&on_cpu(&sw, &reference, &[]));
+    assert_eq!(fs::read(&out).unwrap(), fs::read(&reference).unwrap());
+}
+
 /// Ctrl-C during `run --trace FILE`: the trace being written and its lock
 /// are removed (`FILE.tmp` was left behind), the run says so and exits 130.
 #[test]

@@ -1,10 +1,13 @@
 //! The CPU backend: every scene of a batch on the rayon pool.
 
+use std::sync::atomic::{AtomicBool, Ordering};
+
 use rayon::prelude::*;
 
 use super::{Backend, ChainSource, Job};
 use crate::engine::granular::{self, ChainOutcome};
-use crate::engine::{simulate_batch_parallel, Outcome};
+use crate::engine::{simulate_batch_parallel_until, Outcome};
+use crate::error::Interrupted;
 
 pub struct Cpu;
 
@@ -21,6 +24,10 @@ impl Backend for Cpu {
     }
 
     fn run(&self, jobs: &[Job]) -> anyhow::Result<Vec<Outcome>> {
+        self.run_until(jobs, &AtomicBool::new(false))
+    }
+
+    fn run_until(&self, jobs: &[Job], stop: &AtomicBool) -> anyhow::Result<Vec<Outcome>> {
         let runs: Vec<_> = jobs
             .iter()
             .filter_map(|j| match j {
@@ -28,7 +35,10 @@ impl Backend for Cpu {
                 Job::Invalid { .. } => None,
             })
             .collect();
-        let mut done = simulate_batch_parallel(&runs).into_iter();
+        let Some(done) = simulate_batch_parallel_until(&runs, stop) else {
+            return Err(Interrupted.into());
+        };
+        let mut done = done.into_iter();
         Ok(jobs
             .iter()
             .map(|j| match j {
@@ -41,10 +51,22 @@ impl Backend for Cpu {
     /// Every chain a task of its own (a chain's cost varies with its
     /// length and speed: one long chain must not hold others back).
     fn run_chains(&self, n: usize, job: ChainSource) -> anyhow::Result<Vec<ChainOutcome>> {
+        self.run_chains_until(n, job, &AtomicBool::new(false))
+    }
+
+    fn run_chains_until(
+        &self,
+        n: usize,
+        job: ChainSource,
+        stop: &AtomicBool,
+    ) -> anyhow::Result<Vec<ChainOutcome>> {
         (0..n)
             .into_par_iter()
             .with_max_len(1)
             .map(|k| {
+                if stop.load(Ordering::Relaxed) {
+                    return Err(Interrupted.into());
+                }
                 Ok(match job(k)? {
                     Some(j) => granular::run(&j.beads, &j.plan, &mut granular::NoRows),
                     None => ChainOutcome::invalid(),

@@ -10,6 +10,7 @@ use crate::engine::granular::{self, Beads, ChainOutcome, Plan, Rows};
 use crate::engine::{Chain, Outcome, Solver, Status};
 use crate::error::{flag, InputError};
 use crate::scene::Precision;
+use std::sync::atomic::AtomicBool;
 
 /// Scenes per batch on the CPU: the unit of work of a sweep lane and of a
 /// backend call (a backend says its own: [`Backend::batch_size`]).
@@ -64,6 +65,16 @@ pub trait Backend: Sync {
     fn adapter(&self) -> String;
     /// Outcomes of `jobs`, in the same order.
     fn run(&self, jobs: &[Job]) -> anyhow::Result<Vec<Outcome>>;
+    /// [`Backend::run`], giving up once `stop` is set (an interrupt):
+    /// then `Err(`[`crate::error::Interrupted`]`)` and no outcome, the
+    /// sweep keeping the rows of the batches before. The default runs to
+    /// the end (a GPU's batch is seconds at most); the CPU starts no chunk
+    /// of scenes after the flag. (The sweep pipeline's wrapper that calls
+    /// this, `sweep::pipeline::Stoppable`, forwards every method of this
+    /// trait: a new one goes there too.)
+    fn run_until(&self, jobs: &[Job], _stop: &AtomicBool) -> anyhow::Result<Vec<Outcome>> {
+        self.run(jobs)
+    }
     /// Scenes per `run` call of the sweep pipeline.
     fn batch_size(&self) -> u64 {
         BATCH
@@ -86,6 +97,16 @@ pub trait Backend: Sync {
             "the {} backend has no granular-chain kernel ({n} chains): run chain sweeps with --backend cpu",
             self.name()
         )
+    }
+    /// [`Backend::run_chains`], giving up once `stop` is set, as
+    /// [`Backend::run_until`]; the CPU starts no chain after the flag.
+    fn run_chains_until(
+        &self,
+        n: usize,
+        job: ChainSource,
+        _stop: &AtomicBool,
+    ) -> anyhow::Result<Vec<ChainOutcome>> {
+        self.run_chains(n, job)
     }
     /// Get ready for scenes as `needs` describes, before the first one runs:
     /// a GPU backend compiles every pipeline they can use here, so a shader

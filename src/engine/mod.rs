@@ -158,11 +158,25 @@ pub fn simulate_batch(jobs: &[(&Chain, &Solver)]) -> Vec<Outcome> {
 /// [`simulate_batch`] on the rayon pool, in chunks small enough to share
 /// out uneven scenes between the threads, large enough to fill the lanes.
 pub fn simulate_batch_parallel(jobs: &[(&Chain, &Solver)]) -> Vec<Outcome> {
+    simulate_batch_parallel_until(jobs, &std::sync::atomic::AtomicBool::new(false))
+        .expect("a flag nobody sets")
+}
+
+/// [`simulate_batch_parallel`], no chunk started once `stop` is set: then
+/// `None` (the chunks running finish first, a few scenes a thread). The
+/// same chunks, so the same outcomes.
+pub fn simulate_batch_parallel_until(
+    jobs: &[(&Chain, &Solver)],
+    stop: &std::sync::atomic::AtomicBool,
+) -> Option<Vec<Outcome>> {
     use rayon::prelude::*;
+    use std::sync::atomic::Ordering;
     let chunk = (jobs.len() / (8 * rayon::current_num_threads())).clamp(8, 256);
-    jobs.par_chunks(chunk)
-        .flat_map_iter(simulate_batch)
-        .collect()
+    let chunks: Option<Vec<Vec<Outcome>>> = jobs
+        .par_chunks(chunk)
+        .map(|c| (!stop.load(Ordering::Relaxed)).then(|| simulate_batch(c)))
+        .collect();
+    Some(chunks?.into_iter().flatten().collect())
 }
 
 /// Job routing, one definition for every backend: the Hertz runs of `jobs`

@@ -282,6 +282,18 @@ pub fn stream(
     hooks: &Hooks,
 ) -> Result<(u64, u64, Partial, Stages)> {
     let (progress, save) = (hooks.progress, hooks.save);
+    // An interrupt stops a batch in hand too, not only the next ones.
+    let stoppable;
+    let backend: &dyn Backend = match &opts.cancel {
+        Some(stop) => {
+            stoppable = Stoppable {
+                inner: backend,
+                stop,
+            };
+            &stoppable
+        }
+        None => backend,
+    };
     let mut batch_size = sweep.model.batch_size(backend.batch_size().max(1));
     if let TableFormat::Parquet(_) = out.format {
         // A power of two ≤ a segment: no batch straddles two segments.
@@ -386,8 +398,13 @@ pub fn stream(
                         .as_ref()
                         .is_some_and(|c| c.load(Ordering::SeqCst))
                     {
-                        let _ = tx.send(Err(crate::error::Interrupted.into()));
-                        abort.store(true, Ordering::SeqCst);
+                        // Every batch taken: the run ends as it would have
+                        // (the lanes still working stop theirs, or finish
+                        // them, and the writer has them all).
+                        if next.load(Ordering::SeqCst) < n_batches {
+                            let _ = tx.send(Err(crate::error::Interrupted.into()));
+                            abort.store(true, Ordering::SeqCst);
+                        }
                         break;
                     }
                     let b = next.fetch_add(1, Ordering::SeqCst);
@@ -446,4 +463,59 @@ pub fn stream(
         st.device = backend.device_stats();
         Ok((ok, done, out, st))
     })
+}
+
+/// A backend whose calls give up once `stop` is set ([`Backend::run_until`],
+/// [`Backend::run_chains_until`]): a sweep's interrupt stops the batches in
+/// hand, not only the next ones. Every other method is the inner
+/// backend's.
+struct Stoppable<'a> {
+    inner: &'a dyn Backend,
+    stop: &'a AtomicBool,
+}
+
+impl Backend for Stoppable<'_> {
+    fn name(&self) -> &'static str {
+        self.inner.name()
+    }
+    fn adapter(&self) -> String {
+        self.inner.adapter()
+    }
+    fn run(&self, jobs: &[crate::backend::Job]) -> Result<Vec<crate::engine::Outcome>> {
+        self.inner.run_until(jobs, self.stop)
+    }
+    fn run_until(
+        &self,
+        jobs: &[crate::backend::Job],
+        stop: &AtomicBool,
+    ) -> Result<Vec<crate::engine::Outcome>> {
+        self.inner.run_until(jobs, stop)
+    }
+    fn batch_size(&self) -> u64 {
+        self.inner.batch_size()
+    }
+    fn max_concurrent_runs(&self) -> usize {
+        self.inner.max_concurrent_runs()
+    }
+    fn device_stats(&self) -> Option<DeviceStats> {
+        self.inner.device_stats()
+    }
+    fn run_chains(
+        &self,
+        n: usize,
+        job: crate::backend::ChainSource,
+    ) -> Result<Vec<crate::engine::granular::ChainOutcome>> {
+        self.inner.run_chains_until(n, job, self.stop)
+    }
+    fn run_chains_until(
+        &self,
+        n: usize,
+        job: crate::backend::ChainSource,
+        stop: &AtomicBool,
+    ) -> Result<Vec<crate::engine::granular::ChainOutcome>> {
+        self.inner.run_chains_until(n, job, stop)
+    }
+    fn prepare(&self, needs: &crate::backend::Needs) -> Result<()> {
+        self.inner.prepare(needs)
+    }
 }
