@@ -274,6 +274,30 @@ fn disk_full_at_random_points_loses_nothing_and_resume_completes_the_same_bytes(
     );
 }
 
+/// `cradle sweep SW --out OUT --backend cpu --threads 1`, sent `signal`
+/// (`-INT`, `-TERM`) once `OUT.partial` holds at least `bytes`: its output.
+fn interrupted_sweep(sw: &Path, out: &Path, signal: &str, bytes: u64) -> Output {
+    let partial = PathBuf::from(format!("{}.partial", out.display()));
+    let child = Std::new(assert_cmd::cargo::cargo_bin("cradle"))
+        .args(["sweep", s(sw), "--out", s(out), "--backend", "cpu"])
+        .args(["--threads", "1"])
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let t0 = Instant::now();
+    while fs::metadata(&partial).map_or(true, |m| m.len() < bytes)
+        && t0.elapsed() < Duration::from_secs(60)
+    {
+        std::thread::sleep(Duration::from_millis(2));
+    }
+    let killed = Std::new("kill")
+        .args([signal, &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(killed.success());
+    child.wait_with_output().unwrap()
+}
+
 /// Ctrl-C (SIGINT) during a sweep: the rows in hand are written, the run
 /// says how many are kept and how to continue, exits 130 (docs/GUIDE.md's table),
 /// and `--resume` completes the bytes of an uninterrupted run. SIGTERM the same.
@@ -288,24 +312,7 @@ fn ctrl_c_keeps_the_rows_says_how_to_continue_and_resume_completes_them() {
     for signal in ["-INT", "-TERM"] {
         let out = d.join(format!("o{signal}.csv"));
         let partial = d.join(format!("o{signal}.csv.partial"));
-        let child = Std::new(assert_cmd::cargo::cargo_bin("cradle"))
-            .args(["sweep", s(&sw), "--out", s(&out), "--backend", "cpu"])
-            .args(["--threads", "1"])
-            .stderr(std::process::Stdio::piped())
-            .spawn()
-            .unwrap();
-        let t0 = Instant::now();
-        while fs::metadata(&partial).map_or(0, |m| m.len()) < 100_000
-            && t0.elapsed() < Duration::from_secs(60)
-        {
-            std::thread::sleep(Duration::from_millis(2));
-        }
-        let killed = Std::new("kill")
-            .args([signal, &child.id().to_string()])
-            .status()
-            .unwrap();
-        assert!(killed.success());
-        let o = child.wait_with_output().unwrap();
+        let o = interrupted_sweep(&sw, &out, signal, 100_000);
         let e = stderr(&o);
         assert_eq!(o.status.code(), Some(130), "{signal}: {e}");
         assert!(!out.exists(), "an interrupted run must not look complete");
@@ -342,23 +349,8 @@ fn ctrl_c_stops_the_batch_in_hand() {
          [[axis]]\nparam = \"launch.velocity\"\nlinspace = [0.5, 1.5, 40]\n",
     )
     .unwrap();
-    let (out, partial) = (d.join("h.csv"), d.join("h.csv.partial"));
-    let child = Std::new(assert_cmd::cargo::cargo_bin("cradle"))
-        .args(["sweep", s(&sw), "--out", s(&out), "--backend", "cpu"])
-        .args(["--threads", "1"])
-        .stderr(std::process::Stdio::piped())
-        .spawn()
-        .unwrap();
-    let t0 = Instant::now();
-    while !partial.exists() && t0.elapsed() < Duration::from_secs(60) {
-        std::thread::sleep(Duration::from_millis(2));
-    }
-    let killed = Std::new("kill")
-        .args(["-INT", &child.id().to_string()])
-        .status()
-        .unwrap();
-    assert!(killed.success());
-    let o = child.wait_with_output().unwrap();
+    let out = d.join("h.csv");
+    let o = interrupted_sweep(&sw, &out, "-INT", 0);
     let e = stderr(&o);
     assert_eq!(o.status.code(), Some(130), "{e}");
     assert!(!out.exists(), "an interrupted run must not look complete");
