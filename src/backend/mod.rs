@@ -68,8 +68,10 @@ pub trait Backend: Sync {
     /// [`Backend::run`], giving up once `stop` is set (an interrupt):
     /// then `Err(`[`crate::error::Interrupted`]`)` and no outcome, the
     /// sweep keeping the rows of the batches before. The default runs to
-    /// the end (a GPU's batch is seconds at most); the CPU starts no chunk
-    /// of scenes after the flag. (The sweep pipeline's wrapper that calls
+    /// the end (a GPU's batch is seconds at most); on the CPU no lane takes
+    /// a scene after the flag, the runs in the lanes ending first
+    /// ([`crate::engine::simulate_batch_parallel_until`]). (The sweep
+    /// pipeline's wrapper that calls
     /// this, `sweep::pipeline::Stoppable`, forwards every method of this
     /// trait: a new one goes there too.)
     fn run_until(&self, jobs: &[Job], _stop: &AtomicBool) -> anyhow::Result<Vec<Outcome>> {

@@ -14,13 +14,17 @@ pub mod real;
 pub mod solver;
 
 pub use chain::Chain;
-pub use cradle::{integrate, integrate_batch, End, Limits, Observer, Run, Silent, StepPlan, Task};
+pub use cradle::{
+    integrate, integrate_batch, integrate_batch_until, End, Limits, Observer, Run, Silent,
+    StepPlan, Task,
+};
 pub use models::Model;
 pub use outcome::{Outcome, Status, MAX_OVERLAP_RATIO};
 pub use solver::{Overrides, Solver, StepRule};
 
 use crate::scene::Precision;
 use real::Df64;
+use std::sync::atomic::AtomicBool;
 
 /// A request to end a long run early, shared with whoever may make it (the
 /// explorer, when a scene passes its time limit and its caller has been
@@ -133,6 +137,12 @@ pub fn simulate_chain<O: Observer>(chain: &Chain, solver: &Solver, obs: &mut O) 
 /// integrated side by side ([`integrate_batch`]), with the same results as
 /// [`simulate_chain`] on each.
 pub fn simulate_batch(jobs: &[(&Chain, &Solver)]) -> Vec<Outcome> {
+    simulate_batch_until(jobs, &AtomicBool::new(false)).expect("a flag nobody sets")
+}
+
+/// [`simulate_batch`], no Hertz run started once `stop` is set: then
+/// `None`, after the runs in the lanes end ([`integrate_batch_until`]).
+pub fn simulate_batch_until(jobs: &[(&Chain, &Solver)], stop: &AtomicBool) -> Option<Vec<Outcome>> {
     let mut out: Vec<Option<Outcome>> = vec![None; jobs.len()];
     for (precision, idx) in hertz_groups(jobs, |_, s| s.precision) {
         let tasks: Vec<(Task, f64)> = idx
@@ -141,40 +151,40 @@ pub fn simulate_batch(jobs: &[(&Chain, &Solver)]) -> Vec<Outcome> {
             .collect();
         let plain: Vec<Task> = tasks.iter().map(|t| t.0).collect();
         let runs = match precision {
-            Precision::F32 => integrate_batch::<f32>(&plain),
-            Precision::F64 => integrate_batch::<f64>(&plain),
-            Precision::Df64 => integrate_batch::<Df64>(&plain),
-        };
+            Precision::F32 => integrate_batch_until::<f32>(&plain, stop),
+            Precision::F64 => integrate_batch_until::<f64>(&plain, stop),
+            Precision::Df64 => integrate_batch_until::<Df64>(&plain, stop),
+        }?;
         for ((i, run), (task, dt)) in idx.into_iter().zip(runs).zip(tasks) {
             out[i] = Some(Outcome::from_run(task.chain, &run, dt));
         }
     }
-    out.into_iter()
-        .zip(jobs)
-        .map(|(o, (c, s))| o.unwrap_or_else(|| simulate_model(c, s)))
-        .collect()
+    Some(
+        out.into_iter()
+            .zip(jobs)
+            .map(|(o, (c, s))| o.unwrap_or_else(|| simulate_model(c, s)))
+            .collect(),
+    )
 }
 
 /// [`simulate_batch`] on the rayon pool, in chunks small enough to share
 /// out uneven scenes between the threads, large enough to fill the lanes.
 pub fn simulate_batch_parallel(jobs: &[(&Chain, &Solver)]) -> Vec<Outcome> {
-    simulate_batch_parallel_until(jobs, &std::sync::atomic::AtomicBool::new(false))
-        .expect("a flag nobody sets")
+    simulate_batch_parallel_until(jobs, &AtomicBool::new(false)).expect("a flag nobody sets")
 }
 
-/// [`simulate_batch_parallel`], no chunk started once `stop` is set: then
-/// `None` (the chunks running finish first, a few scenes a thread). The
-/// same chunks, so the same outcomes.
+/// [`simulate_batch_parallel`], no run started once `stop` is set: then
+/// `None`, after the runs in the lanes end (a scene a lane). The same
+/// chunks and lanes, so the same outcomes.
 pub fn simulate_batch_parallel_until(
     jobs: &[(&Chain, &Solver)],
-    stop: &std::sync::atomic::AtomicBool,
+    stop: &AtomicBool,
 ) -> Option<Vec<Outcome>> {
     use rayon::prelude::*;
-    use std::sync::atomic::Ordering;
     let chunk = (jobs.len() / (8 * rayon::current_num_threads())).clamp(8, 256);
     let chunks: Option<Vec<Vec<Outcome>>> = jobs
         .par_chunks(chunk)
-        .map(|c| (!stop.load(Ordering::Relaxed)).then(|| simulate_batch(c)))
+        .map(|c| simulate_batch_until(c, stop))
         .collect();
     Some(chunks?.into_iter().flatten().collect())
 }

@@ -4,6 +4,7 @@
 
 use super::lanes::*;
 use super::*;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 /// Chains of up to 12 bodies integrated side by side per batch (longer ones:
 /// 4, so that every lane's state stays in L1 cache).
@@ -12,6 +13,13 @@ pub const LANES: usize = 32;
 /// Integrate every task, [`LANES`] at a time; results in task order. The
 /// same arithmetic, operation for operation, as [`integrate`] on each.
 pub fn integrate_batch<R: Real>(tasks: &[Task]) -> Vec<Run> {
+    integrate_batch_until::<R>(tasks, &AtomicBool::new(false)).expect("a flag nobody sets")
+}
+
+/// [`integrate_batch`], no task started once `stop` is set (an interrupt):
+/// then `None`, after the runs in the lanes end. Until then the same
+/// lanes, refilled in the same order, so the same results.
+pub fn integrate_batch_until<R: Real>(tasks: &[Task], stop: &AtomicBool) -> Option<Vec<Run>> {
     let keys: Vec<_> = tasks.iter().map(Task::key).collect();
     let mut order: Vec<usize> = (0..tasks.len()).collect();
     order.sort_by_key(|&i| keys[i]);
@@ -20,14 +28,12 @@ pub fn integrate_batch<R: Real>(tasks: &[Task]) -> Vec<Run> {
         #[cfg(target_arch = "x86_64")]
         if is_x86_feature_detected!("avx") {
             // SAFETY: the CPU has AVX (checked just above).
-            unsafe { run_group_avx::<R>(tasks, group, &mut out) };
+            unsafe { run_group_avx::<R>(tasks, group, &mut out, stop) };
             continue;
         }
-        run_group::<R>(tasks, group, &mut out);
+        run_group::<R>(tasks, group, &mut out, stop);
     }
-    out.into_iter()
-        .map(|r| r.expect("every task ran"))
-        .collect()
+    out.into_iter().collect()
 }
 
 /// [`run_group`] compiled for AVX: four f64 (eight f32) lanes per
@@ -35,20 +41,25 @@ pub fn integrate_batch<R: Real>(tasks: &[Task]) -> Vec<Run> {
 /// without AVX, operation for operation.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx")]
-unsafe fn run_group_avx<R: Real>(tasks: &[Task], group: &[usize], out: &mut [Option<Run>]) {
-    run_group::<R>(tasks, group, out)
+unsafe fn run_group_avx<R: Real>(
+    tasks: &[Task],
+    group: &[usize],
+    out: &mut [Option<Run>],
+    stop: &AtomicBool,
+) {
+    run_group::<R>(tasks, group, out, stop)
 }
 
 /// One group of equal keys, with or without the gravity and damping terms.
 #[inline(always)]
-fn run_group<R: Real>(tasks: &[Task], group: &[usize], out: &mut [Option<Run>]) {
+fn run_group<R: Real>(tasks: &[Task], group: &[usize], out: &mut [Option<Run>], stop: &AtomicBool) {
     let ch = tasks[group[0]].chain;
     // Long chains in fewer lanes: the state of every lane stays in L1 cache.
     match (ch.needs_terms(), ch.n_bodies() <= 12) {
-        (false, true) => run_lanes::<R, Silent, false, LANES>(tasks, group, out, &mut Silent),
-        (false, false) => run_lanes::<R, Silent, false, 4>(tasks, group, out, &mut Silent),
-        (true, true) => run_lanes::<R, Silent, true, LANES>(tasks, group, out, &mut Silent),
-        (true, false) => run_lanes::<R, Silent, true, 4>(tasks, group, out, &mut Silent),
+        (false, true) => run_lanes::<R, Silent, false, LANES>(tasks, group, out, &mut Silent, stop),
+        (false, false) => run_lanes::<R, Silent, false, 4>(tasks, group, out, &mut Silent, stop),
+        (true, true) => run_lanes::<R, Silent, true, LANES>(tasks, group, out, &mut Silent, stop),
+        (true, false) => run_lanes::<R, Silent, true, 4>(tasks, group, out, &mut Silent, stop),
     }
 }
 
@@ -66,12 +77,13 @@ pub fn integrate<R: Real, O: Observer>(
         lim: *lim,
     }];
     let mut out = vec![None];
+    let go = AtomicBool::new(false);
     // Work a scene does not need is not compiled in: an elastic free line
     // runs a variant without the gravity, damping and drag terms.
     if ch.needs_terms() {
-        run_lanes::<R, O, true, 1>(&tasks, &[0], &mut out, obs);
+        run_lanes::<R, O, true, 1>(&tasks, &[0], &mut out, obs, &go);
     } else {
-        run_lanes::<R, O, false, 1>(&tasks, &[0], &mut out, obs);
+        run_lanes::<R, O, false, 1>(&tasks, &[0], &mut out, obs, &go);
     }
     out.pop().flatten().expect("the task ran")
 }
@@ -84,6 +96,7 @@ fn run_lanes<R: Real, O: Observer, const TERMS: bool, const L: usize>(
     group: &[usize],
     out: &mut [Option<Run>],
     obs: &mut O,
+    stop: &AtomicBool,
 ) {
     let first = &tasks[group[0]];
     let ch0 = first.chain;
@@ -105,7 +118,12 @@ fn run_lanes<R: Real, O: Observer, const TERMS: bool, const L: usize>(
     let kicks = kick_weights(weights);
     let kicks = &kicks[..];
     let mut s = Lanes::<R, L>::new();
-    let mut queue = group.iter().copied().peekable();
+    // No lane takes a task once `stop` is set.
+    let mut queue = group
+        .iter()
+        .copied()
+        .take_while(|_| !stop.load(Ordering::Relaxed))
+        .peekable();
     for l in 0..L {
         if let Some(i) = queue.next() {
             s.load(&sh, l, i, &tasks[i]);

@@ -50,7 +50,7 @@ use super::contact::{contact_force, fifth_root, hertz_force};
 use super::real::Real;
 use super::Chain;
 use crate::scene::MAX_BALLS;
-pub use driver::{integrate, integrate_batch, LANES};
+pub use driver::{integrate, integrate_batch, integrate_batch_until, LANES};
 use kernels::*;
 pub use kernels::{closing_speed_floor, decay, kick_weights, kink_impulse_error, pendulum_sin};
 
