@@ -71,9 +71,8 @@ pub trait Backend: Sync {
     /// the end (a GPU's batch is seconds at most); on the CPU no lane takes
     /// a scene after the flag, the runs in the lanes ending first
     /// ([`crate::engine::simulate_batch_parallel_until`]). (The sweep
-    /// pipeline's wrapper that calls
-    /// this, `sweep::pipeline::Stoppable`, forwards every method of this
-    /// trait: a new one goes there too.)
+    /// pipeline's wrapper that calls this, `sweep::pipeline::Stoppable`,
+    /// forwards every method of this trait: a new one goes there too.)
     fn run_until(&self, jobs: &[Job], _stop: &AtomicBool) -> anyhow::Result<Vec<Outcome>> {
         self.run(jobs)
     }
