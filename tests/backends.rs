@@ -572,14 +572,17 @@ fn gpu_matches_cpu_on_pendulums_and_damping() {
 }
 
 /// An interrupt stops a CPU batch in hand (`run_until`, `run_chains_until`:
-/// the sweep's Ctrl-C): with the flag set no scene or chain starts and the
-/// call says `Interrupted`; with it clear the outcomes are `run`'s, field
-/// for field.
+/// the sweep's Ctrl-C): with the stop requested no scene or chain starts and
+/// the call says `Interrupted`; a chain already running when it comes ends
+/// within a few steps (its plan's stop), its outcome not returned; with the
+/// stop live but not requested the outcomes are `run`'s, field for field.
 #[test]
 fn cpu_batches_stop_when_asked_and_are_the_same_when_not() {
+    use hertz_cradle::engine::{Stop, Tally};
     use hertz_cradle::error::Interrupted;
-    use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
-    let (set, clear) = (AtomicBool::new(true), AtomicBool::new(false));
+    use std::sync::atomic::{AtomicUsize, Ordering};
+    let (set, clear) = (Stop::new(), Stop::new());
+    set.request();
     let jobs = batch(Precision::F64);
     let e = Cpu.run_until(&jobs, &set).unwrap_err();
     assert!(e.downcast_ref::<Interrupted>().is_some(), "{e:#}");
@@ -607,6 +610,32 @@ fn cpu_batches_stop_when_asked_and_are_the_same_when_not() {
     let all = Cpu.run_chains(6, &source).unwrap();
     let until = Cpu.run_chains_until(6, &source, &clear).unwrap();
     assert_eq!(format!("{all:?}"), format!("{until:?}"));
+    // The request comes as the chain is built, after the check before it:
+    // the run sees it through its plan and ends early.
+    let counted = |tally: &Tally| {
+        let mut j = job.clone();
+        j.plan.tally = tally.clone();
+        j
+    };
+    let whole = Tally::new();
+    Cpu.run_chains(1, &|_| Ok(Some(counted(&whole)))).unwrap();
+    let (late, cut) = (Stop::new(), Tally::new());
+    let e = Cpu
+        .run_chains_until(
+            1,
+            &|_| {
+                late.request();
+                Ok(Some(counted(&cut)))
+            },
+            &late,
+        )
+        .unwrap_err();
+    assert!(e.downcast_ref::<Interrupted>().is_some(), "{e:#}");
+    let (whole, cut) = (whole.get().unwrap(), cut.get().unwrap());
+    assert!(
+        cut * 10 < whole,
+        "{cut} of {whole} bead-steps after the stop"
+    );
 }
 
 /// The CPU integrates a batch side by side in SIMD lanes (refilled as runs

@@ -1,12 +1,10 @@
 //! The CPU backend: every scene of a batch on the rayon pool.
 
-use std::sync::atomic::{AtomicBool, Ordering};
-
 use rayon::prelude::*;
 
 use super::{Backend, ChainSource, Job};
 use crate::engine::granular::{self, ChainOutcome};
-use crate::engine::{simulate_batch_parallel_until, Outcome};
+use crate::engine::{simulate_batch_parallel_until, Outcome, Stop};
 use crate::error::Interrupted;
 
 pub struct Cpu;
@@ -24,10 +22,10 @@ impl Backend for Cpu {
     }
 
     fn run(&self, jobs: &[Job]) -> anyhow::Result<Vec<Outcome>> {
-        self.run_until(jobs, &AtomicBool::new(false))
+        self.run_until(jobs, &Stop::default())
     }
 
-    fn run_until(&self, jobs: &[Job], stop: &AtomicBool) -> anyhow::Result<Vec<Outcome>> {
+    fn run_until(&self, jobs: &[Job], stop: &Stop) -> anyhow::Result<Vec<Outcome>> {
         let runs: Vec<_> = jobs
             .iter()
             .filter_map(|j| match j {
@@ -51,26 +49,37 @@ impl Backend for Cpu {
     /// Every chain a task of its own (a chain's cost varies with its
     /// length and speed: one long chain must not hold others back).
     fn run_chains(&self, n: usize, job: ChainSource) -> anyhow::Result<Vec<ChainOutcome>> {
-        self.run_chains_until(n, job, &AtomicBool::new(false))
+        self.run_chains_until(n, job, &Stop::default())
     }
 
     fn run_chains_until(
         &self,
         n: usize,
         job: ChainSource,
-        stop: &AtomicBool,
+        stop: &Stop,
     ) -> anyhow::Result<Vec<ChainOutcome>> {
         (0..n)
             .into_par_iter()
             .with_max_len(1)
             .map(|k| {
-                if stop.load(Ordering::Relaxed) {
+                if stop.requested() {
                     return Err(Interrupted.into());
                 }
-                Ok(match job(k)? {
-                    Some(j) => granular::run(&j.beads, &j.plan, &mut granular::NoRows),
+                let o = match job(k)? {
+                    Some(mut j) => {
+                        // A chain running sees the request too (every few
+                        // steps); its outcome is then not the scene's.
+                        if stop.is_live() {
+                            j.plan.stop = stop.clone();
+                        }
+                        granular::run(&j.beads, &j.plan, &mut granular::NoRows)
+                    }
                     None => ChainOutcome::invalid(),
-                })
+                };
+                if stop.requested() {
+                    return Err(Interrupted.into());
+                }
+                Ok(o)
             })
             .collect()
     }

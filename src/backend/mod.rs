@@ -7,10 +7,9 @@ pub mod layout;
 
 use crate::choice::Choice;
 use crate::engine::granular::{self, Beads, ChainOutcome, Plan, Rows};
-use crate::engine::{Chain, Outcome, Solver, Status};
+use crate::engine::{Chain, Outcome, Solver, Status, Stop};
 use crate::error::{flag, InputError};
 use crate::scene::Precision;
-use std::sync::atomic::AtomicBool;
 
 /// Scenes per batch on the CPU: the unit of work of a sweep lane and of a
 /// backend call (a backend says its own: [`Backend::batch_size`]).
@@ -65,15 +64,15 @@ pub trait Backend: Sync {
     fn adapter(&self) -> String;
     /// Outcomes of `jobs`, in the same order.
     fn run(&self, jobs: &[Job]) -> anyhow::Result<Vec<Outcome>>;
-    /// [`Backend::run`], giving up once `stop` is set (an interrupt):
+    /// [`Backend::run`], giving up once `stop` is requested (an interrupt):
     /// then `Err(`[`crate::error::Interrupted`]`)` and no outcome, the
     /// sweep keeping the rows of the batches before. The default runs to
     /// the end (a GPU's batch is seconds at most); on the CPU no lane takes
-    /// a scene after the flag, the runs in the lanes ending first
+    /// a scene after the request, the runs in the lanes ending first
     /// ([`crate::engine::simulate_batch_parallel_until`]). (The sweep
     /// pipeline's wrapper that calls this, `sweep::pipeline::Stoppable`,
     /// forwards every method of this trait: a new one goes there too.)
-    fn run_until(&self, jobs: &[Job], _stop: &AtomicBool) -> anyhow::Result<Vec<Outcome>> {
+    fn run_until(&self, jobs: &[Job], _stop: &Stop) -> anyhow::Result<Vec<Outcome>> {
         self.run(jobs)
     }
     /// Scenes per `run` call of the sweep pipeline.
@@ -99,13 +98,15 @@ pub trait Backend: Sync {
             self.name()
         )
     }
-    /// [`Backend::run_chains`], giving up once `stop` is set, as
-    /// [`Backend::run_until`]; the CPU starts no chain after the flag.
+    /// [`Backend::run_chains`], giving up once `stop` is requested, as
+    /// [`Backend::run_until`]. On the CPU no chain starts after the request,
+    /// and a chain running sees it through its plan's stop
+    /// ([`crate::engine::granular::run()`] looks every few steps) and ends.
     fn run_chains_until(
         &self,
         n: usize,
         job: ChainSource,
-        _stop: &AtomicBool,
+        _stop: &Stop,
     ) -> anyhow::Result<Vec<ChainOutcome>> {
         self.run_chains(n, job)
     }

@@ -24,7 +24,6 @@ pub use solver::{Overrides, Solver, StepRule};
 
 use crate::scene::Precision;
 use real::Df64;
-use std::sync::atomic::AtomicBool;
 
 /// A request to end a long run early, shared with whoever may make it (the
 /// explorer, when a scene passes its time limit and its caller has been
@@ -87,6 +86,17 @@ impl Stop {
         }
     }
 
+    /// A stop that `flag` triggers, as set by whoever holds it (a sweep's
+    /// interrupt, Ctrl-C).
+    pub fn on(flag: std::sync::Arc<std::sync::atomic::AtomicBool>) -> Stop {
+        Stop(Some(flag))
+    }
+
+    /// Whether it can ever be requested (not [`Stop::default`]).
+    pub fn is_live(&self) -> bool {
+        self.0.is_some()
+    }
+
     pub fn requested(&self) -> bool {
         self.0
             .as_ref()
@@ -137,12 +147,12 @@ pub fn simulate_chain<O: Observer>(chain: &Chain, solver: &Solver, obs: &mut O) 
 /// integrated side by side ([`integrate_batch`]), with the same results as
 /// [`simulate_chain`] on each.
 pub fn simulate_batch(jobs: &[(&Chain, &Solver)]) -> Vec<Outcome> {
-    simulate_batch_until(jobs, &AtomicBool::new(false)).expect("a flag nobody sets")
+    simulate_batch_until(jobs, &Stop::default()).expect("a stop nobody requests")
 }
 
 /// [`simulate_batch`], no Hertz run started once `stop` is set: then
 /// `None`, after the runs in the lanes end ([`integrate_batch_until`]).
-pub fn simulate_batch_until(jobs: &[(&Chain, &Solver)], stop: &AtomicBool) -> Option<Vec<Outcome>> {
+pub fn simulate_batch_until(jobs: &[(&Chain, &Solver)], stop: &Stop) -> Option<Vec<Outcome>> {
     let mut out: Vec<Option<Outcome>> = vec![None; jobs.len()];
     for (precision, idx) in hertz_groups(jobs, |_, s| s.precision) {
         let tasks: Vec<(Task, f64)> = idx
@@ -170,7 +180,7 @@ pub fn simulate_batch_until(jobs: &[(&Chain, &Solver)], stop: &AtomicBool) -> Op
 /// [`simulate_batch`] on the rayon pool, in chunks small enough to share
 /// out uneven scenes between the threads, large enough to fill the lanes.
 pub fn simulate_batch_parallel(jobs: &[(&Chain, &Solver)]) -> Vec<Outcome> {
-    simulate_batch_parallel_until(jobs, &AtomicBool::new(false)).expect("a flag nobody sets")
+    simulate_batch_parallel_until(jobs, &Stop::default()).expect("a stop nobody requests")
 }
 
 /// [`simulate_batch_parallel`], no run started once `stop` is set: then
@@ -178,7 +188,7 @@ pub fn simulate_batch_parallel(jobs: &[(&Chain, &Solver)]) -> Vec<Outcome> {
 /// chunks and lanes, so the same outcomes.
 pub fn simulate_batch_parallel_until(
     jobs: &[(&Chain, &Solver)],
-    stop: &AtomicBool,
+    stop: &Stop,
 ) -> Option<Vec<Outcome>> {
     use rayon::prelude::*;
     let chunk = (jobs.len() / (8 * rayon::current_num_threads())).clamp(8, 256);

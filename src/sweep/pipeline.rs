@@ -285,10 +285,10 @@ pub fn stream(
     // An interrupt stops a batch in hand too, not only the next ones.
     let stoppable;
     let backend: &dyn Backend = match &opts.cancel {
-        Some(stop) => {
+        Some(flag) => {
             stoppable = Stoppable {
                 inner: backend,
-                stop,
+                stop: crate::engine::Stop::on(flag.clone()),
             };
             &stoppable
         }
@@ -465,13 +465,13 @@ pub fn stream(
     })
 }
 
-/// A backend whose calls give up once `stop` is set ([`Backend::run_until`],
+/// A backend whose calls give up once `stop` is requested ([`Backend::run_until`],
 /// [`Backend::run_chains_until`]): a sweep's interrupt stops the batches in
 /// hand, not only the next ones. Every other method is the inner
 /// backend's.
 struct Stoppable<'a> {
     inner: &'a dyn Backend,
-    stop: &'a AtomicBool,
+    stop: crate::engine::Stop,
 }
 
 impl Backend for Stoppable<'_> {
@@ -482,12 +482,12 @@ impl Backend for Stoppable<'_> {
         self.inner.adapter()
     }
     fn run(&self, jobs: &[crate::backend::Job]) -> Result<Vec<crate::engine::Outcome>> {
-        self.inner.run_until(jobs, self.stop)
+        self.inner.run_until(jobs, &self.stop)
     }
     fn run_until(
         &self,
         jobs: &[crate::backend::Job],
-        stop: &AtomicBool,
+        stop: &crate::engine::Stop,
     ) -> Result<Vec<crate::engine::Outcome>> {
         self.inner.run_until(jobs, stop)
     }
@@ -505,13 +505,13 @@ impl Backend for Stoppable<'_> {
         n: usize,
         job: crate::backend::ChainSource,
     ) -> Result<Vec<crate::engine::granular::ChainOutcome>> {
-        self.inner.run_chains_until(n, job, self.stop)
+        self.inner.run_chains_until(n, job, &self.stop)
     }
     fn run_chains_until(
         &self,
         n: usize,
         job: crate::backend::ChainSource,
-        stop: &AtomicBool,
+        stop: &crate::engine::Stop,
     ) -> Result<Vec<crate::engine::granular::ChainOutcome>> {
         self.inner.run_chains_until(n, job, stop)
     }

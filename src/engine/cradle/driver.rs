@@ -4,7 +4,7 @@
 
 use super::lanes::*;
 use super::*;
-use std::sync::atomic::{AtomicBool, Ordering};
+use crate::engine::Stop;
 
 /// Chains of up to 12 bodies integrated side by side per batch (longer ones:
 /// 4, so that every lane's state stays in L1 cache).
@@ -13,13 +13,13 @@ pub const LANES: usize = 32;
 /// Integrate every task, [`LANES`] at a time; results in task order. The
 /// same arithmetic, operation for operation, as [`integrate`] on each.
 pub fn integrate_batch<R: Real>(tasks: &[Task]) -> Vec<Run> {
-    integrate_batch_until::<R>(tasks, &AtomicBool::new(false)).expect("a flag nobody sets")
+    integrate_batch_until::<R>(tasks, &Stop::default()).expect("a stop nobody requests")
 }
 
 /// [`integrate_batch`], no task started once `stop` is set (an interrupt):
 /// then `None`, after the runs in the lanes end. Until then the same
 /// lanes, refilled in the same order, so the same results.
-pub fn integrate_batch_until<R: Real>(tasks: &[Task], stop: &AtomicBool) -> Option<Vec<Run>> {
+pub fn integrate_batch_until<R: Real>(tasks: &[Task], stop: &Stop) -> Option<Vec<Run>> {
     let keys: Vec<_> = tasks.iter().map(Task::key).collect();
     let mut order: Vec<usize> = (0..tasks.len()).collect();
     order.sort_by_key(|&i| keys[i]);
@@ -45,14 +45,14 @@ unsafe fn run_group_avx<R: Real>(
     tasks: &[Task],
     group: &[usize],
     out: &mut [Option<Run>],
-    stop: &AtomicBool,
+    stop: &Stop,
 ) {
     run_group::<R>(tasks, group, out, stop)
 }
 
 /// One group of equal keys, with or without the gravity and damping terms.
 #[inline(always)]
-fn run_group<R: Real>(tasks: &[Task], group: &[usize], out: &mut [Option<Run>], stop: &AtomicBool) {
+fn run_group<R: Real>(tasks: &[Task], group: &[usize], out: &mut [Option<Run>], stop: &Stop) {
     let ch = tasks[group[0]].chain;
     // Long chains in fewer lanes: the state of every lane stays in L1 cache.
     match (ch.needs_terms(), ch.n_bodies() <= 12) {
@@ -77,7 +77,7 @@ pub fn integrate<R: Real, O: Observer>(
         lim: *lim,
     }];
     let mut out = vec![None];
-    let go = AtomicBool::new(false);
+    let go = Stop::default();
     // Work a scene does not need is not compiled in: an elastic free line
     // runs a variant without the gravity, damping and drag terms.
     if ch.needs_terms() {
@@ -96,7 +96,7 @@ fn run_lanes<R: Real, O: Observer, const TERMS: bool, const L: usize>(
     group: &[usize],
     out: &mut [Option<Run>],
     obs: &mut O,
-    stop: &AtomicBool,
+    stop: &Stop,
 ) {
     let first = &tasks[group[0]];
     let ch0 = first.chain;
@@ -122,7 +122,7 @@ fn run_lanes<R: Real, O: Observer, const TERMS: bool, const L: usize>(
     let mut queue = group
         .iter()
         .copied()
-        .take_while(|_| !stop.load(Ordering::Relaxed))
+        .take_while(|_| !stop.requested())
         .peekable();
     for l in 0..L {
         if let Some(i) = queue.next() {
