@@ -37,7 +37,8 @@ pub enum Command {
         /// Output format.
         #[arg(long, value_enum, default_value_t = Format::Table)]
         format: Format,
-        /// Write the trajectory (t, x_0.., v_0..; SI units) as CSV to FILE.
+        /// Write the trajectory (t, x_0.., v_0..; SI units) to FILE: FILE.csv,
+        /// or FILE.parquet/.pq (the same columns).
         #[arg(long, value_name = "FILE")]
         trace: Option<PathBuf>,
         /// Trace row spacing in simulated seconds [default: 1/20 of the shortest contact time].
@@ -56,9 +57,9 @@ pub enum Command {
         after_help = "Examples:\n  cradle sweep examples/mass_gap.toml --out results/mass_gap.csv\n  cradle sweep big.toml --out big.csv --resume\n  cradle sweep big.toml --out part2.csv --shard 2/4   # then: cradle merge part*.csv --out big.csv"
     )]
     Sweep(SweepArgs),
-    /// Join shard CSVs into one; refuses if any id is missing or repeated.
+    /// Join shard tables (CSV or Parquet) into one of their format; refuses if any id is missing or repeated.
     Merge {
-        /// Shard CSV files, in any order.
+        /// Shard tables, all CSV or all Parquet, in any order.
         #[arg(required = true)]
         inputs: Vec<PathBuf>,
         #[arg(long, value_name = "FILE")]
@@ -67,8 +68,9 @@ pub enum Command {
     /// Write a refined sweep's table (`[refine]`) as the full grid: every scene
     /// not computed takes the row of its nearest computed one.
     Fill {
-        /// A refined sweep's CSV (its sidecar FILE.json beside it).
+        /// A refined sweep's table, CSV or Parquet (its sidecar FILE.json beside it).
         table: PathBuf,
+        /// The full grid's table, as CSV: FILE.csv.
         #[arg(long, value_name = "FILE")]
         out: PathBuf,
     },
@@ -95,11 +97,11 @@ pub enum Command {
         after_help = "Examples:\n  cradle plot results/mass_gap.csv --x gap --y 'mass[2]' --z ejected --out ejected.png\n  cradle plot big.csv --x gap --y velocity[0] --z v_4 --where balls=5 --out v4.svg\n  cradle plot --trace trace.csv --out trace.png\n  cradle plot grid.csv --x gap --y velocity --z v_4 --size 3.4x2.6 --out fig2.pdf"
     )]
     Plot {
-        /// Outcome CSV (from `cradle sweep`).
+        /// Outcome table, CSV or Parquet (from `cradle sweep`).
         #[arg(required_unless_present = "trace", conflicts_with = "trace")]
         table: Option<PathBuf>,
-        /// A trace CSV (from `cradle run --trace`) instead: positions and velocities against time.
-        #[arg(long, value_name = "TRACE.csv")]
+        /// A trace, CSV or Parquet (from `cradle run --trace`) instead: positions and velocities against time.
+        #[arg(long, value_name = "TRACE")]
         trace: Option<PathBuf>,
         /// Column on the horizontal axis.
         #[arg(long, required_unless_present = "trace")]
@@ -158,7 +160,8 @@ pub struct SlurmArgs {
     /// Number of shards (array tasks).
     #[arg(long)]
     pub shards: u64,
-    /// Merged output CSV [default: SWEEP's name .csv in the current directory].
+    /// Merged output table: FILE.csv, or FILE.parquet/.pq (the shards are
+    /// written in its format) [default: SWEEP's name .csv in the current directory].
     #[arg(long, value_name = "FILE")]
     pub out: Option<PathBuf>,
     /// Directory for the scripts, shard outputs and logs [default: slurm-SWEEP's name].

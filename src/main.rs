@@ -336,6 +336,18 @@ fn fill(table: std::path::PathBuf, out: std::path::PathBuf) -> anyhow::Result<()
         std::slice::from_ref(&table),
         hertz_cradle::output::publish::ALONE_COMPANIONS,
     )?;
+    // fill writes CSV text: a name that says another format would hold
+    // bytes it does not name (`--out full.parquet` was CSV inside).
+    if hertz_cradle::output::TableKind::from_extension(&out)
+        != Some(hertz_cradle::output::TableKind::Csv)
+    {
+        return Err(hertz_cradle::error::flag(
+            "--out",
+            &out.display().to_string(),
+            "a name ending in .csv (fill writes CSV, from a CSV or Parquet table)",
+        )
+        .into());
+    }
     if !table.exists() {
         return Err(hertz_cradle::InputError::Read {
             path: table,

@@ -365,7 +365,7 @@ fn trace_output(name: &str, path: &Path) -> Result<PathBuf, InputError> {
         return Err(flag(
             "--trace",
             &path.display().to_string(),
-            "a name ending in .csv or .parquet (the trace's format)",
+            "a name ending in .csv or .parquet (.pq): the trace's format",
         ));
     }
     Ok(checked)

@@ -2,8 +2,9 @@
 //! directory, every path in them absolute:
 //!
 //! - `array.sbatch`: one task per shard, `cradle sweep … --shard K/N --resume`
-//!   into `parts/shard-K-of-N.csv` (a task that is resubmitted continues where
-//!   it stopped; one that finished is not redone);
+//!   into `parts/shard-K-of-N.csv` (`.parquet` when the merged table is
+//!   Parquet; a task that is resubmitted continues where it stopped; one
+//!   that finished is not redone);
 //! - `merge.sbatch`: runs after every task has ended (`afterany`), checks that
 //!   every shard is complete (naming the missing ones and how to resubmit
 //!   them) and `cradle merge`s them, which refuses missing or repeated ids;
@@ -21,6 +22,7 @@ use crate::cli::SlurmArgs;
 use crate::error::flag;
 use crate::output::guard;
 use crate::output::partial::COMPANIONS;
+use crate::output::TableKind;
 use crate::sweep::Sweep;
 
 /// A checked `cradle slurm`: everything a task would refuse is refused now,
@@ -33,6 +35,17 @@ pub fn plan(a: &SlurmArgs) -> Result<Plan> {
     crate::engine::Solver::resolve(&spec.base, &overrides)?;
     if let Some(o) = &a.out {
         guard::output("--out", o, &spec.inputs, COMPANIONS)?;
+        // The shards are written in the merged table's format (`cradle
+        // merge` joins parts of one format into that format): a name that
+        // says none would be refused by the merge, after the whole array.
+        if TableKind::from_extension(o).is_none() {
+            return Err(flag(
+                "--out",
+                &o.display().to_string(),
+                "a name ending in .csv or .parquet (.pq): the merged table's format, and its shards'",
+            )
+            .into());
+        }
     }
     if a.shards == 0 || a.shards > spec.total {
         return Err(flag(
@@ -165,7 +178,12 @@ pub fn scripts(p: &Plan) -> Result<(String, String, String)> {
         .unwrap_or_default()
         .to_string_lossy()
         .to_string();
-    let part = |k: &str| dir.join("parts").join(format!("shard-{k}-of-{n}.csv"));
+    // The shards' format is the merged table's.
+    let ext = match TableKind::from_extension(&out) {
+        Some(TableKind::Parquet) => "parquet",
+        _ => "csv",
+    };
+    let part = |k: &str| dir.join("parts").join(format!("shard-{k}-of-{n}.{ext}"));
     let mut a = String::new();
     writeln!(a, "#!/bin/bash")?;
     writeln!(
@@ -205,7 +223,7 @@ pub fn scripts(p: &Plan) -> Result<(String, String, String)> {
     let flags: String = p.flags.iter().map(|f| format!(" {}", quote(f))).collect();
     writeln!(
         a,
-        "exec {} sweep {} --out {}\"$K\"-of-{n}.csv --shard \"$K\"/{n} --resume --backend {backend}{threads}{flags}",
+        "exec {} sweep {} --out {}\"$K\"-of-{n}.{ext} --shard \"$K\"/{n} --resume --backend {backend}{threads}{flags}",
         q(&cradle),
         q(&sweep),
         q(&dir.join("parts").join("shard-"))
@@ -232,7 +250,7 @@ pub fn scripts(p: &Plan) -> Result<(String, String, String)> {
     writeln!(m, "for k in $(seq 1 {n}); do")?;
     writeln!(
         m,
-        "  [ -f {}\"$k\"-of-{n}.csv ] || missing+=(\"$k\")",
+        "  [ -f {}\"$k\"-of-{n}.{ext} ] || missing+=(\"$k\")",
         q(&dir.join("parts").join("shard-"))
     )?;
     writeln!(m, "done")?;

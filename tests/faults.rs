@@ -866,6 +866,74 @@ fn run_and_slurm_apply_the_same_rules_as_sweep() {
     assert!(!d.join("sl").exists(), "nothing written for a refused plan");
 }
 
+/// A file holds the format its name says, on every command that writes a
+/// table: `fill` writes CSV, so `--out full.parquet` (CSV inside, before)
+/// or `full.txt` is refused and nothing is written; `slurm --out
+/// big.parquet` writes its shards as Parquet, so the job array's merge
+/// joins them into big.parquet (before: CSV shards, whose merge into
+/// .parquet was refused after the whole array), the same rows as the
+/// unsharded run; a merged name that says no format is refused at once.
+#[test]
+fn every_table_is_written_in_the_format_its_name_says() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (_, refined) = write_refined(d);
+    let table = d.join("r.parquet");
+    ok(&on_cpu(&refined, &table, &[]));
+    for name in ["full.parquet", "full.pq", "full.txt"] {
+        let out = d.join(name);
+        refused(
+            &["fill", s(&table), "--out", s(&out)],
+            "a name ending in .csv (fill writes CSV",
+        );
+        assert!(!out.exists(), "{name}");
+    }
+    ok(&["fill", s(&table), "--out", s(&d.join("full.csv"))]);
+
+    let sw = write_sweep(d, 3, 4);
+    let sl = d.join("sl");
+    let slurm = |out: &Path| {
+        vec![
+            "slurm".to_string(),
+            s(&sw).into(),
+            "--shards".into(),
+            "2".into(),
+            "--out".into(),
+            s(out).into(),
+            "--dir".into(),
+            s(&sl).into(),
+        ]
+    };
+    refused(&slurm(&d.join("big.txt")), "the merged table's format");
+    assert!(!sl.exists(), "nothing written for a refused plan");
+    let big = d.join("big.parquet");
+    let args = slurm(&big);
+    ok(&args.iter().map(String::as_str).collect::<Vec<_>>());
+    let array = fs::read_to_string(sl.join("array.sbatch")).unwrap();
+    assert!(
+        array.contains("-of-2.parquet") && !array.contains(".csv"),
+        "{array}"
+    );
+    // The scripts as Slurm would run them (each task, then the merge).
+    for k in ["1", "2"] {
+        let o = Std::new("bash")
+            .arg(sl.join("array.sbatch"))
+            .env("SLURM_ARRAY_TASK_ID", k)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "task {k}: {}", stderr(&o));
+    }
+    let o = Std::new("bash")
+        .arg(sl.join("merge.sbatch"))
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "merge: {}", stderr(&o));
+    let whole = d.join("whole.parquet");
+    ok(&on_cpu(&sw, &whole, &[]));
+    let read = hertz_cradle::output::parquet_file::read_text;
+    assert_eq!(read(&big).unwrap(), read(&whole).unwrap());
+}
+
 /// Parquet output keeps every promise of the CSV: a disk that fills or a
 /// kill -9 loses no whole segment, `--resume` finishes the same bytes as an
 /// uninterrupted run (segments end at fixed ids), and the values are the
