@@ -934,6 +934,35 @@ fn every_table_is_written_in_the_format_its_name_says() {
     assert_eq!(read(&big).unwrap(), read(&whole).unwrap());
 }
 
+/// A trace (`cradle run --trace`) given where a sweep's table goes says
+/// what it is and how to plot it, exit 2 — not "not a cradle sidecar
+/// (missing field `tool`)", as its own sidecar read before.
+#[test]
+fn a_trace_given_for_a_table_says_what_it_is() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    for name in ["t.csv", "t.parquet"] {
+        let trace = d.join(name);
+        ok(&["run", "cradle-1", "--trace", s(&trace)]);
+        let png = d.join("o.png");
+        let out = d.join("o.csv");
+        let words = |a: &[&str]| a.iter().map(|w| w.to_string()).collect::<Vec<_>>();
+        for args in [
+            plot_args(&trace, &png),
+            words(&["explore", s(&trace), "--port", "0"]),
+            words(&["fill", s(&trace), "--out", s(&out)]),
+            words(&["merge", s(&trace), "--out", s(&out)]),
+        ] {
+            let e = refused(&args, "a trace (of cradle-1), not a sweep's table");
+            assert!(
+                e.contains(&format!("cradle plot --trace {}", s(&trace))) && !e.contains("shard"),
+                "{args:?}: {e}"
+            );
+        }
+        assert!(!png.exists() && !out.exists());
+    }
+}
+
 /// Parquet output keeps every promise of the CSV: a disk that fills or a
 /// kill -9 loses no whole segment, `--resume` finishes the same bytes as an
 /// uninterrupted run (segments end at fixed ids), and the values are the

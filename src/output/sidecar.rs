@@ -195,6 +195,19 @@ pub fn read(table: &Path) -> Result<Option<Sidecar>, InputError> {
         path: sc.clone(),
         what: format!("cannot be read ({e})"),
     })?;
+    // A trace's sidecar (`cradle run --trace`) names its scene: the file
+    // beside it is a trace, which a reader of tables should say.
+    if let Ok(serde_json::Value::Object(m)) = serde_json::from_str::<serde_json::Value>(&text) {
+        if let Some(scene) = m.get("trace_of").and_then(|v| v.as_str()) {
+            return Err(InputError::Data {
+                path: table.to_path_buf(),
+                what: format!(
+                    "a trace (of {scene}), not a sweep's table: plot it with `cradle plot --trace {} --out FILE.png`",
+                    table.display()
+                ),
+            });
+        }
+    }
     serde_json::from_str(&text)
         .map(Some)
         .map_err(|e| InputError::Data {

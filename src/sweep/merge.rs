@@ -64,6 +64,8 @@ fn read_part(p: &Path) -> Result<Part> {
                 ),
             ))
         }
+        // A trace is no shard: running it again would not help.
+        Err(InputError::Data { path, what }) if path == p => return Err(bad(&path, what)),
         Err(InputError::Data { path, what }) => {
             return Err(bad(&path, format!("{what}; run the shard again")))
         }
