@@ -18,6 +18,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 
+use crate::choice::Choice;
 use crate::cli::SlurmArgs;
 use crate::error::flag;
 use crate::output::guard;
@@ -178,11 +179,10 @@ pub fn scripts(p: &Plan) -> Result<(String, String, String)> {
         .unwrap_or_default()
         .to_string_lossy()
         .to_string();
-    // The shards' format is the merged table's.
-    let ext = match TableKind::from_extension(&out) {
-        Some(TableKind::Parquet) => "parquet",
-        _ => "csv",
-    };
+    // The shards' format is the merged table's (`plan` refused any other name).
+    let ext = TableKind::from_extension(&out)
+        .unwrap_or(TableKind::Csv)
+        .name();
     let part = |k: &str| dir.join("parts").join(format!("shard-{k}-of-{n}.{ext}"));
     let mut a = String::new();
     writeln!(a, "#!/bin/bash")?;

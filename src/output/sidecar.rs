@@ -195,25 +195,27 @@ pub fn read(table: &Path) -> Result<Option<Sidecar>, InputError> {
         path: sc.clone(),
         what: format!("cannot be read ({e})"),
     })?;
-    // A trace's sidecar (`cradle run --trace`) names its scene: the file
-    // beside it is a trace, which a reader of tables should say.
-    if let Ok(serde_json::Value::Object(m)) = serde_json::from_str::<serde_json::Value>(&text) {
-        if let Some(scene) = m.get("trace_of").and_then(|v| v.as_str()) {
-            return Err(InputError::Data {
+    serde_json::from_str(&text).map(Some).map_err(|e| {
+        // A trace's sidecar (`cradle run --trace`, request.rs) names its
+        // scene: the file beside it is a trace, which a reader of tables
+        // should say.
+        let trace_of = serde_json::from_str::<serde_json::Value>(&text)
+            .ok()
+            .and_then(|v| v.get("trace_of")?.as_str().map(str::to_owned));
+        match trace_of {
+            Some(scene) => InputError::Data {
                 path: table.to_path_buf(),
                 what: format!(
                     "a trace (of {scene}), not a sweep's table: plot it with `cradle plot --trace {} --out FILE.png`",
                     table.display()
                 ),
-            });
+            },
+            None => InputError::Data {
+                path: sc,
+                what: format!("not a cradle sidecar ({e})"),
+            },
         }
-    }
-    serde_json::from_str(&text)
-        .map(Some)
-        .map_err(|e| InputError::Data {
-            path: sc,
-            what: format!("not a cradle sidecar ({e})"),
-        })
+    })
 }
 
 /// The solver flags a sweep ran with, as its sidecar records them
