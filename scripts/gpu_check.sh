@@ -18,7 +18,9 @@
 #             worker as before, a larger batch), GPU f32, the CPU on all
 #             cores, the hard-sphere model on the CPU (the floor: no physics).
 #   stress    examples/stress.toml (3,360 chains up to 64 balls), the GPU
-#             capped at STRESS_CAP seconds.
+#             capped at STRESS_CAP seconds; again with the wide kernel's
+#             reductions through workgroup memory (subgroups=false) beside
+#             the default's subgroup shuffles.
 #   struck    1,000 struck chains of 1,000 beads (issue #30's target).
 #   dimer     512 struck 100-bead dimer chains (8 radius ratios x 64 speeds).
 #   damped    256 struck 300-bead chains with dashpots and air drag
@@ -192,6 +194,7 @@ for p in "${cshapes[@]}"; do
   run "dimer_shape$i" "$CAP" "$p" sweep $w/dimer.toml --out "$w/dimer_shape$i.csv" --backend gpu
 done
 run stress_gpu  "$STRESS_CAP" "" sweep stress.toml --out $w/stress_gpu.csv --backend gpu --precision f64
+run stress_gpu_tree "$STRESS_CAP" "hardware,subgroups=false" sweep stress.toml --out $w/stress_gpu_tree.csv --backend gpu --precision f64
 run stress_cpu        "$CAP" "" sweep stress.toml --out $w/stress_cpu.csv --backend cpu
 if [ -x ./chain_contract ] && ! [[ " $SKIP " == *" contract "* ]]; then
   for p in ${CONTRACT_PRECISIONS:-f64}; do
@@ -293,6 +296,7 @@ while os.path.exists(f"{w}/chain_shape{i}.profile"):
     i += 1
 rows += [
     ("stress.toml GPU f64", "stress_gpu", "stress_cpu"),
+    ("stress.toml GPU f64, reductions by the tree (subgroups=false)", "stress_gpu_tree", "stress_cpu"),
     ("stress.toml CPU", "stress_cpu", None),
 ]
 print(f"adapter: {adapter}\n")

@@ -394,29 +394,36 @@ fn gpu_matches_cpu_on_1200_scenes_f32() {
 #[test]
 fn shaders_validate_with_naga() {
     use hertz_cradle::backend::gpu::{shader_source_sized, shader_source_wide, SIZE_CLASSES};
-    for (p, class, wide) in [Precision::F32, Precision::F64, Precision::Df64]
+    // (lanes, the wide kernel by workgroup memory, by subgroups)
+    for (p, class, kernel) in [Precision::F32, Precision::F64, Precision::Df64]
         .into_iter()
         .flat_map(|p| SIZE_CLASSES.map(|c| (p, c)))
-        .flat_map(|(p, c)| [(p, c, false), (p, c, true)])
+        .flat_map(|(p, c)| [(p, c, 0), (p, c, 1), (p, c, 2)])
     {
-        let src = if wide {
-            shader_source_wide(p, class)
-        } else {
-            shader_source_sized(p, class)
+        let src = match kernel {
+            0 => shader_source_sized(p, class),
+            k => shader_source_wide(p, class, k == 2),
         };
         let module = naga::front::wgsl::parse_str(&src).unwrap_or_else(|e| {
             panic!(
-                "{} {class} wide={wide}: {}",
+                "{} {class} kernel {kernel}: {}",
                 p.name(),
                 e.emit_to_string(&src)
             )
         });
-        naga::valid::Validator::new(
-            naga::valid::ValidationFlags::all(),
-            naga::valid::Capabilities::FLOAT64,
-        )
-        .validate(&module)
-        .unwrap_or_else(|e| panic!("{}: {e:?}", p.name()));
+        // The subgroup kernel needs wgpu's SUBGROUP feature (these
+        // capabilities); the others validate without it.
+        let caps = naga::valid::Capabilities::FLOAT64
+            | if kernel == 2 {
+                naga::valid::Capabilities::SUBGROUP
+            } else {
+                naga::valid::Capabilities::empty()
+            };
+        naga::valid::Validator::new(naga::valid::ValidationFlags::all(), caps)
+            .subgroup_stages(naga::valid::ShaderStages::COMPUTE)
+            .subgroup_operations(naga::valid::SubgroupOperationSet::all())
+            .validate(&module)
+            .unwrap_or_else(|e| panic!("{} {class} kernel {kernel}: {e:?}", p.name()));
     }
     // The global path and a workgroup-memory one (1,024 beads).
     for (p, local) in [Precision::F64, Precision::Df64]
@@ -919,6 +926,8 @@ fn shader_cites_only_rust_items_that_exist() {
     let body = [
         hertz_cradle::backend::gpu::SHADER_BODY,
         hertz_cradle::backend::gpu::WIDE_BODY,
+        hertz_cradle::backend::gpu::WIDE_SUBGROUP,
+        hertz_cradle::backend::gpu::WIDE_WORKGROUP,
         &hertz_cradle::backend::gpu::chain_shader(
             Precision::F64,
             ChainKernel {
@@ -1093,7 +1102,10 @@ fn gpu_size_classes_match_cpu() {
 /// method, glue and length 2–9, pendulums, damping and drag, and chains of
 /// 16, 17, 33 and 64 bodies (three size classes), with three scenes a worker and
 /// seven loop rounds a dispatch (every scene resumed across dispatches) — bit
-/// for bit on a software adapter, to the precision's bound on hardware.
+/// for bit on a software adapter, to the precision's bound on hardware; with
+/// its reductions by subgroup shuffles and through workgroup memory alike
+/// (lavapipe's subgroups of 8 make the size class 8 one subgroup, the
+/// others several).
 #[test]
 fn gpu_wide_kernel_gives_the_serial_kernels_outcomes() {
     let Some(g) = gpu() else { return };
@@ -1103,7 +1115,16 @@ fn gpu_wide_kernel_gives_the_serial_kernels_outcomes() {
         rounds: Some(7),
         ..g.profile()
     });
+    let tree = gpu_with(Profile {
+        subgroups: false,
+        ..wide.profile()
+    });
     let exact = g.info().device_type == wgpu::DeviceType::Cpu;
+    assert!(!tree.subgroups());
+    if exact {
+        // Mesa's lavapipe has offered subgroup operations since 21.x.
+        assert!(wide.subgroups(), "the subgroup reduction goes untested");
+    }
     for (p, bound) in [
         (Precision::F64, 1e-12),
         (Precision::F32, 1e-5),
@@ -1119,9 +1140,21 @@ fn gpu_wide_kernel_gives_the_serial_kernels_outcomes() {
             jobs.push(job(&text, p, Some(1e-3)));
         }
         let (a, b) = (g.run(&jobs).unwrap(), wide.run(&jobs).unwrap());
+        // The tree on a third of the free lines and pendulums, and the long
+        // chains (every size class; lavapipe's barriers are slow).
+        let long = jobs.len() - 4;
+        let some: Vec<usize> = (0..jobs.len())
+            .filter(|i| i % 3 == 0 || *i >= long)
+            .collect();
+        let c = tree
+            .run(&some.iter().map(|&i| jobs[i].clone()).collect::<Vec<_>>())
+            .unwrap();
         if exact {
             for (i, (x, y)) in a.iter().zip(&b).enumerate() {
                 assert_same(x, y, &format!("{} scene {i}", p.name()));
+            }
+            for (&i, z) in some.iter().zip(&c) {
+                assert_same(&a[i], z, &format!("{} scene {i}, by the tree", p.name()));
             }
         }
         let worst = max_diff(&jobs, &a, &b);
@@ -1378,12 +1411,16 @@ fn gpu_profiles_parse_with_clear_errors() {
             "chain_wg=100: allowed 32, 64, … 1024 or auto",
         ),
         ("hardware,chain_local=no", "allowed true or false"),
+        ("hardware,subgroups=1", "subgroups=1: allowed true or false"),
     ] {
         let e = Profile::parse(bad).unwrap_err().to_string();
         assert!(e.contains(says), "{bad}: {e}");
     }
-    let p = Profile::parse("software,chain_wg=256,chain_local=false").unwrap();
-    assert_eq!((p.chain_wg, p.chain_local), (Some(256), false));
+    let p = Profile::parse("software,chain_wg=256,chain_local=false,subgroups=false").unwrap();
+    assert_eq!(
+        (p.chain_wg, p.chain_local, p.subgroups),
+        (Some(256), false, false)
+    );
     assert_eq!(
         Profile::parse("hardware,chain_wg=auto").unwrap().chain_wg,
         None

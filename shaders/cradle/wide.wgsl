@@ -21,7 +21,7 @@ var<workgroup> wacc: array<real, MAX_BALLS>;
 var<workgroup> wx: array<real, MAX_BALLS>;
 var<workgroup> wdj: array<real, MAX_BALLS>;
 var<workgroup> wkink: array<bool, MAX_BALLS>;
-// reduction scratch (`reduce`)
+// reduction scratch (`reduce`: the tree's levels, or each subgroup's result)
 var<workgroup> ra: array<real, MAX_BALLS>;
 var<workgroup> rb: array<real, MAX_BALLS>;
 var<workgroup> rc: array<real, MAX_BALLS>;
@@ -59,39 +59,24 @@ const RED_MIN: u32 = 0u; // a, b, c: minima; u: sum
 const RED_MAX: u32 = 1u; // a, b, c: maxima; u: sum
 const RED_ARGMIN: u32 = 2u; // a: the least, u: its index (the lowest on ties; NONE: none)
 
-// `x` of every invocation combined (`op`); every invocation gets the result.
-fn reduce(x: Red, op: u32) -> Red {
-    workgroupBarrier(); // the last reduction's result has been read
-    ra[me] = x.a;
-    rb[me] = x.b;
-    rc[me] = x.c;
-    ru[me] = x.u;
-    workgroupBarrier();
-    for (var s = MAX_BALLS / 2u; s > 0u; s = s / 2u) {
-        if (me < s) {
-            let o = me + s;
-            if (op == RED_ARGMIN) {
-                let ib = ru[o];
-                let ia = ru[me];
-                if (ib != NONE && (ia == NONE || r_lt(ra[o], ra[me]) || (!r_lt(ra[me], ra[o]) && ib < ia))) {
-                    ra[me] = ra[o];
-                    ru[me] = ib;
-                }
-            } else if (op == RED_MIN) {
-                ra[me] = r_min(ra[me], ra[o]);
-                rb[me] = r_min(rb[me], rb[o]);
-                rc[me] = r_min(rc[me], rc[o]);
-                ru[me] = ru[me] + ru[o];
-            } else {
-                ra[me] = r_max(ra[me], ra[o]);
-                rb[me] = r_max(rb[me], rb[o]);
-                rc[me] = r_max(rc[me], rc[o]);
-                ru[me] = ru[me] + ru[o];
-            }
+// `x` and `y` combined (`op`), `y` from the higher invocations: minima or
+// maxima of a, b, c and the sum of u; for RED_ARGMIN the lesser a with its
+// index u (the lower index on ties, NONE: no value), b and c x's. Exact in
+// any grouping (minima, maxima, integer sums, ties broken by index), so
+// `reduce` may combine in any order: wide_workgroup.wgsl's tree over
+// workgroup memory, or wide_subgroup.wgsl's shuffles within each subgroup
+// and then the subgroups' results in order.
+fn combine(x: Red, y: Red, op: u32) -> Red {
+    if (op == RED_ARGMIN) {
+        if (y.u != NONE && (x.u == NONE || r_lt(y.a, x.a) || (!r_lt(x.a, y.a) && y.u < x.u))) {
+            return Red(y.a, x.b, x.c, y.u);
         }
-        workgroupBarrier();
+        return x;
     }
-    return Red(ra[0], rb[0], rc[0], ru[0]);
+    if (op == RED_MIN) {
+        return Red(r_min(x.a, y.a), r_min(x.b, y.b), r_min(x.c, y.c), x.u + y.u);
+    }
+    return Red(r_max(x.a, y.a), r_max(x.b, y.b), r_max(x.c, y.c), x.u + y.u);
 }
 
 // How many invocations say `yes`.
@@ -593,9 +578,8 @@ fn integrate(i: u32, left: u32) -> u32 {
 // queue (invocation 0 takes them), until the dispatch's rounds are spent or
 // the queue is empty.
 @compute @workgroup_size(MAX_BALLS)
-fn main(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) lid: u32) {
-    me = lid;
-    let w = wid.x;
+fn main(lane: Lane) {
+    let w = enter(lane);
     if (w >= arrayLength(&workers)) {
         return;
     }

@@ -47,7 +47,7 @@ pub use profile::{dispatch_budget, Profile};
 use shaders::PipeKey;
 pub use shaders::{
     shader_source, shader_source_sized, shader_source_wide, size_class, SHADER_BODY, SIZE_CLASSES,
-    WIDE_BODY,
+    WIDE_BODY, WIDE_SUBGROUP, WIDE_WORKGROUP,
 };
 
 /// A compute shader's storage buffer at `binding` of a bind-group layout.
@@ -133,11 +133,9 @@ impl Gpu {
     pub fn new(adapter: &wgpu::Adapter) -> Result<Gpu> {
         let info = adapter.get_info();
         let f64_ok = adapter.features().contains(wgpu::Features::SHADER_F64);
-        let features = if f64_ok {
-            wgpu::Features::SHADER_F64
-        } else {
-            wgpu::Features::empty()
-        };
+        // f64 where offered; subgroup operations too (the wide kernel's
+        // reductions, when the profile lets it use them).
+        let features = adapter.features() & (wgpu::Features::SHADER_F64 | wgpu::Features::SUBGROUP);
         // Ask for what the adapter offers: storage bindings as large as it allows.
         let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
             label: Some("cradle"),
@@ -201,11 +199,22 @@ impl Gpu {
         Ok(gpu)
     }
 
-    /// The same context using the device as `profile` says.
+    /// The same context using the device as `profile` says (pipelines
+    /// built for the old profile are built again as the new one asks).
     pub fn with_profile(mut self, profile: Profile) -> Gpu {
         self.profile = profile;
         self.on_device = crate::backend::Gate::new(profile.calls);
+        self.pipes
+            .get_mut()
+            .unwrap_or_else(|e| e.into_inner())
+            .clear();
         self
+    }
+
+    /// Whether the wide kernel reduces by subgroup operations: the device
+    /// has them (wgpu's `Features::SUBGROUP`) and the profile allows them.
+    pub fn subgroups(&self) -> bool {
+        self.profile.subgroups && self.device.features().contains(wgpu::Features::SUBGROUP)
     }
 
     pub fn profile(&self) -> Profile {

@@ -76,6 +76,11 @@ pub struct Profile {
     /// Invocations per workgroup of the chain kernel (`None`: by the
     /// chain's length, `granular::chain_wg`), at most the device's.
     pub chain_wg: Option<u32>,
+    /// The wide kernel reduces over a workgroup by subgroup shuffles where
+    /// the device has them (one or two barriers a reduction instead of
+    /// 2 + log2(size class)); off: through workgroup memory (the same bits,
+    /// for comparing the two).
+    pub subgroups: bool,
 }
 
 impl Profile {
@@ -103,6 +108,7 @@ impl Profile {
         wide_above: Some(16),
         chain_local: true,
         chain_wg: None,
+        subgroups: true,
     };
     /// lavapipe runs on the cores the lanes use: the CPU's batch, one call at
     /// a time (two at once were 3× slower on grid100), a worker per scene,
@@ -119,6 +125,7 @@ impl Profile {
         chain_local: true,
         // lavapipe runs every invocation, idle or not, on the same cores.
         chain_wg: Some(CHAIN_WG),
+        subgroups: true,
     };
 
     /// `CRADLE_GPU_PROFILE`'s value, if set: `hardware` or `software`, then
@@ -143,7 +150,7 @@ impl Profile {
                 bail!("{other:?}: allowed values are hardware and software (then ,key=value pairs)")
             }
         };
-        const KEYS: &str = "batch (1..=1048576), calls (1..=64), host_ahead (0..=64), scenes_per_worker (1..=1024), rounds (1..=65536 or auto), timed (true|false), cpu_above (2..=64 or none), wide_above (1..=64 or none), chain_local (true|false), chain_wg (32, 64, … 1024 or auto)";
+        const KEYS: &str = "batch (1..=1048576), calls (1..=64), host_ahead (0..=64), scenes_per_worker (1..=1024), rounds (1..=65536 or auto), timed (true|false), cpu_above (2..=64 or none), wide_above (1..=64 or none), chain_local (true|false), chain_wg (32, 64, … 1024 or auto), subgroups (true|false)";
         for kv in parts {
             let Some((k, v)) = kv.split_once('=') else {
                 bail!("{kv:?}: expected key=value; keys: {KEYS}");
@@ -154,6 +161,10 @@ impl Profile {
                     .filter(|n| (lo..=hi).contains(n))
                     .ok_or_else(|| anyhow!("{k}={v}: allowed {lo}..={hi}"))
             };
+            let flag = || -> Result<bool> {
+                v.parse()
+                    .map_err(|_| anyhow!("{k}={v}: allowed true or false"))
+            };
             match k {
                 "batch" => p.batch = int(1, 1 << 20)?,
                 "calls" => p.calls = int(1, 64)? as usize,
@@ -161,16 +172,9 @@ impl Profile {
                 "scenes_per_worker" => p.scenes_per_worker = int(1, 1024)? as u32,
                 "rounds" if v == "auto" => p.rounds = None,
                 "rounds" => p.rounds = Some(int(1, 65_536)? as u32),
-                "timed" => {
-                    p.timed = v
-                        .parse()
-                        .map_err(|_| anyhow!("{k}={v}: allowed true or false"))?
-                }
-                "chain_local" => {
-                    p.chain_local = v
-                        .parse()
-                        .map_err(|_| anyhow!("{k}={v}: allowed true or false"))?
-                }
+                "timed" => p.timed = flag()?,
+                "chain_local" => p.chain_local = flag()?,
+                "subgroups" => p.subgroups = flag()?,
                 "chain_wg" if v == "auto" => p.chain_wg = None,
                 "chain_wg" => {
                     p.chain_wg = Some(

@@ -18,11 +18,18 @@ pub const SHADER_BODY: &str = concat!(
     include_str!("../../../shaders/cradle/kernels.wgsl"),
     include_str!("../../../shaders/cradle/lanes.wgsl")
 );
-/// The body of the kernel with a workgroup per scene (an invocation per body).
+/// The body of the kernel with a workgroup per scene (an invocation per
+/// body), less its reduction: [`WIDE_SUBGROUP`] or [`WIDE_WORKGROUP`] follows.
 pub const WIDE_BODY: &str = concat!(
     include_str!("../../../shaders/cradle/kernels.wgsl"),
     include_str!("../../../shaders/cradle/wide.wgsl")
 );
+/// The wide kernel's reduction by subgroup shuffles (wgpu's
+/// `Features::SUBGROUP`): one or two barriers a reduction.
+pub const WIDE_SUBGROUP: &str = include_str!("../../../shaders/cradle/wide_subgroup.wgsl");
+/// The wide kernel's reduction as a tree over workgroup memory, for
+/// adapters without subgroups: 2 + log2(size class) barriers a reduction.
+pub const WIDE_WORKGROUP: &str = include_str!("../../../shaders/cradle/wide_workgroup.wgsl");
 
 /// The whole shader for one precision and chains of up to `max_bodies`
 /// bodies: the generated prelude (types, layout, codes, constants, the
@@ -37,9 +44,18 @@ fn assemble(p: Precision, max_bodies: usize, body: &str) -> Cow<'static, str> {
 }
 
 /// The shader with a workgroup of `max_bodies` invocations per scene
-/// ([`WIDE_BODY`]) for one precision and chains of up to `max_bodies` bodies.
-pub fn shader_source_wide(p: Precision, max_bodies: usize) -> Cow<'static, str> {
-    assemble(p, max_bodies, WIDE_BODY)
+/// ([`WIDE_BODY`]) for one precision and chains of up to `max_bodies`
+/// bodies, reducing over the workgroup by subgroup shuffles when
+/// `subgroups` (the device must have `Features::SUBGROUP`), else through
+/// workgroup memory. Both give the same bits: the reductions are exact in
+/// any order (minima, maxima, counts, the least with its index).
+pub fn shader_source_wide(p: Precision, max_bodies: usize, subgroups: bool) -> Cow<'static, str> {
+    let reduce = if subgroups {
+        WIDE_SUBGROUP
+    } else {
+        WIDE_WORKGROUP
+    };
+    assemble(p, max_bodies, &[WIDE_BODY, reduce].concat())
 }
 
 /// The shader for any chain (private arrays of `scene::MAX_BALLS`).
@@ -132,7 +148,7 @@ impl Gpu {
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some(if wide { "wide.wgsl" } else { "lanes.wgsl" }),
             source: wgpu::ShaderSource::Wgsl(if wide {
-                shader_source_wide(p, class)
+                shader_source_wide(p, class, self.subgroups())
             } else {
                 shader_source_sized(p, class)
             }),
