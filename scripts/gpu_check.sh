@@ -14,8 +14,9 @@
 # difference of its numeric outcome columns and the rows whose status differs):
 #   grid1000  10^6 five-ball cradles (scripts/grid.py 1000 1000): GPU f64 at
 #             the default profile (twice: the first pays the shader builds)
-#             and at three other shapes (no host overlap, two scenes a
-#             worker as before, a larger batch), GPU f32, the CPU on all
+#             and at three other shapes (the scenes' constants copied
+#             into private arrays as before, consts_from_params=false; a
+#             batch of 32,768; 16,384 with 8 calls), GPU f32, the CPU on all
 #             cores, the hard-sphere model on the CPU (the floor: no physics).
 #   stress    examples/stress.toml (3,360 chains up to 64 balls), the GPU
 #             capped at STRESS_CAP seconds; again with the wide kernel's
@@ -73,7 +74,7 @@ capped() {
   [ "$left" -lt 5 ] && { echo 0; return; }
   [ "$1" -lt "$left" ] && echo "$1" || echo "$left"
 }
-PROFILES=${PROFILES:-"hardware,host_ahead=0;hardware,scenes_per_worker=2;hardware,batch=32768"}
+PROFILES=${PROFILES:-"hardware,consts_from_params=false;hardware,batch=32768;hardware,batch=16384,calls=8"}
 table=$w/table.md
 log() { echo "$*" | tee -a "$w/check.log" "$out/check.log"; }
 

@@ -1167,18 +1167,25 @@ fn gpu_wide_kernel_gives_the_serial_kernels_outcomes() {
 /// Workers refilled from the batch's queue (a fifth as many workers as
 /// scenes: each takes about five in turn) and dispatches cut to 7 loop rounds
 /// (each scene resumed across many dispatches, by another worker's successor
-/// at a different point each time) change no outcome: bit for bit the
-/// default layout's, f64 and f32, and more dispatches were made.
+/// at a different point each time), and the scenes' constants read in the
+/// parameters' binding where the default copies them into private arrays
+/// (or the reverse: `consts_from_params`), change no outcome: bit for bit
+/// the default layout's, free lines and pendulums with damping and drag, f64
+/// and f32, and more dispatches were made.
 #[test]
 fn gpu_refills_and_short_dispatches_change_nothing() {
     let Some(g) = gpu() else { return };
     let short = gpu_with(Profile {
         scenes_per_worker: 5,
         rounds: Some(7),
+        // and the constants read where the other context copies them
+        consts_from_params: !g.profile().consts_from_params,
         ..g.profile()
     });
     for p in [Precision::F64, Precision::F32] {
-        let jobs = batch(p);
+        let mut jobs = batch(p);
+        // gaps, masses and stiffnesses read in every branch that has them
+        jobs.extend(pendulum_batch(p));
         let (a, b) = (g.run(&jobs).unwrap(), short.run(&jobs).unwrap());
         for (i, (x, y)) in a.iter().zip(&b).enumerate() {
             assert_same(x, y, &format!("{} scene {i}", p.name()));

@@ -19,6 +19,13 @@ var<private> f: array<real, MAX_BALLS>;
 var<private> acc: array<real, MAX_BALLS>;
 var<private> chi: array<real, MAX_BALLS>;
 var<private> d0: array<real, MAX_BALLS>;
+// The scene's constants: read where they are, in `params` (a read-only
+// binding: cached loads, no private copy for a GPU to spill), when the
+// host sets CONSTS_FROM_PARAMS (the profile's `consts_from_params`: a
+// hardware GPU); else copied into private arrays by `load` (lavapipe, where
+// each buffer read is a bounds-checked gather: grid300 1.6x slower read in
+// place). The same values either way. `at_*`: where each starts in `params`.
+override CONSTS_FROM_PARAMS: bool = false;
 var<private> inv_m: array<real, MAX_BALLS>;
 var<private> k: array<real, MAX_BALLS>;
 var<private> inv_r: array<real, MAX_BALLS>;
@@ -29,6 +36,62 @@ var<private> imp_d: array<real, MAX_BALLS>;
 // stiffness-cap coefficients of each contact (engine::Chain::stiffness_coefficients)
 var<private> stiff_l: array<real, MAX_BALLS>;
 var<private> stiff_r: array<real, MAX_BALLS>;
+var<private> at_inv_m: u32;
+var<private> at_k: u32;
+var<private> at_inv_r: u32;
+var<private> at_gap: u32;
+var<private> at_imp_t: u32;
+var<private> at_imp_d: u32;
+var<private> at_stiff_l: u32;
+var<private> at_stiff_r: u32;
+fn inv_m_of(b: u32) -> real {
+    if (CONSTS_FROM_PARAMS) {
+        return params[at_inv_m + b];
+    }
+    return inv_m[b];
+}
+fn k_of(c: u32) -> real {
+    if (CONSTS_FROM_PARAMS) {
+        return params[at_k + c];
+    }
+    return k[c];
+}
+fn inv_r_of(c: u32) -> real {
+    if (CONSTS_FROM_PARAMS) {
+        return params[at_inv_r + c];
+    }
+    return inv_r[c];
+}
+fn gap_of(c: u32) -> real {
+    if (CONSTS_FROM_PARAMS) {
+        return params[at_gap + c];
+    }
+    return gap[c];
+}
+fn imp_t_of(c: u32) -> real {
+    if (CONSTS_FROM_PARAMS) {
+        return params[at_imp_t + c];
+    }
+    return imp_t[c];
+}
+fn imp_d_of(c: u32) -> real {
+    if (CONSTS_FROM_PARAMS) {
+        return params[at_imp_d + c];
+    }
+    return imp_d[c];
+}
+fn stiff_l_of(c: u32) -> real {
+    if (CONSTS_FROM_PARAMS) {
+        return params[at_stiff_l + c];
+    }
+    return stiff_l[c];
+}
+fn stiff_r_of(c: u32) -> real {
+    if (CONSTS_FROM_PARAMS) {
+        return params[at_stiff_r + c];
+    }
+    return stiff_r[c];
+}
 // engine::cradle::add — x[i] += inc, Kahan-compensated when COMPENSATED.
 fn add(x: ptr<private, array<real, MAX_BALLS>>, cx: ptr<private, array<real, MAX_BALLS>>, i: u32, inc: real) {
     if (COMPENSATED) {
@@ -51,11 +114,11 @@ fn kick(hh: real) {
             cv[b] = r_mul(cv[b], q);
         }
     }
-    push(0u, r_neg(r_mul(r_mul(hh, f[0]), inv_m[0])), hh);
+    push(0u, r_neg(r_mul(r_mul(hh, f[0]), inv_m_of(0))), hh);
     for (var b = 1u; b < nb - 1u; b++) {
-        push(b, r_mul(r_mul(hh, r_sub(f[b - 1u], f[b])), inv_m[b]), hh);
+        push(b, r_mul(r_mul(hh, r_sub(f[b - 1u], f[b])), inv_m_of(b)), hh);
     }
-    push(nb - 1u, r_mul(r_mul(hh, f[nb - 2u]), inv_m[nb - 1u]), hh);
+    push(nb - 1u, r_mul(r_mul(hh, f[nb - 2u]), inv_m_of(nb - 1u)), hh);
 }
 
 // body b's share of a kick, gravity added after (the loop body of engine::cradle::Lanes::kick)
@@ -72,9 +135,9 @@ fn forces() -> bool {
     var closed = false;
     for (var c = 0u; c < nc; c++) {
         if (damped) {
-            f[c] = contact_force(k[c], d[c], chi[c], r_sub(v[c], v[c + 1u]));
+            f[c] = contact_force(k_of(c), d[c], chi[c], r_sub(v[c], v[c + 1u]));
         } else {
-            f[c] = hertz_force(k[c], d[c]);
+            f[c] = hertz_force(k_of(c), d[c]);
         }
         closed = closed || r_gt(d[c], real(0.0));
     }
@@ -82,7 +145,7 @@ fn forces() -> bool {
         var x = x0[0];
         acc[0] = r_neg(r_mul(g, pendulum_sin(r_mul(x, inv_l))));
         for (var b = 1u; b < nb; b++) {
-            x = r_sub(r_sub(x, gap[b - 1u]), d[b - 1u]);
+            x = r_sub(r_sub(x, gap_of(b - 1u)), d[b - 1u]);
             acc[b] = r_neg(r_mul(g, pendulum_sin(r_mul(x, inv_l))));
         }
     }
@@ -109,7 +172,7 @@ fn graded_step(s0: real, h: real, h_min: real, tc: real, quarters: u32) -> real 
         if (c + 1u < nc) {
             right = f[c + 1u];
         }
-        var a = r_sub(r_mul(r_sub(left, f[c]), inv_m[c]), r_mul(r_sub(f[c], right), inv_m[c + 1u]));
+        var a = r_sub(r_mul(r_sub(left, f[c]), inv_m_of(c)), r_mul(r_sub(f[c], right), inv_m_of(c + 1u)));
         if (pend) {
             a = r_add(a, r_sub(acc[c], acc[c + 1u]));
         }
@@ -139,8 +202,8 @@ fn stiffness_cap(s0: real, h_stiff: real, h_min: real) -> real {
     var right = real(0.0);
     for (var c = 0u; c < nc; c++) {
         let dp = r_max(d[c], real(0.0));
-        lam = r_max(lam, r_add(right, r_mul(stiff_l[c], dp)));
-        right = r_mul(stiff_r[c], dp);
+        lam = r_max(lam, r_add(right, r_mul(stiff_l_of(c), dp)));
+        right = r_mul(stiff_r_of(c), dp);
     }
     let lm = r_max(lam, right);
     return stiffness_from(lm, s0, h_stiff, h_min);
@@ -170,12 +233,12 @@ fn exact_impact(c: u32) -> Impact {
     let va = v[a];
     let vb = v[b];
     let u = r_sub(va, vb);
-    let ia = inv_m[a];
-    let ib = inv_m[b];
+    let ia = inv_m_of(a);
+    let ib = inv_m_of(b);
     let fa = r_div(ia, r_add(ia, ib));
     let fb = r_div(ib, r_add(ia, ib));
     let w = fifth_root(u);
-    let tc = r_div(imp_t[c], w);
+    let tc = r_div(imp_t_of(c), w);
     let va2 = r_sub(va, r_mul(r_add(fa, fa), u));
     let vb2 = r_add(vb, r_mul(r_add(fb, fb), u));
     let vcm = r_sub(va, r_mul(fa, u));
@@ -204,7 +267,7 @@ fn exact_impact(c: u32) -> Impact {
     cv[b] = zero;
     out.taken = true;
     out.tc = tc;
-    out.dmax = r_div(r_mul(imp_d[c], u), w);
+    out.dmax = r_div(r_mul(imp_d_of(c), u), w);
     return out;
 }
 
@@ -215,20 +278,32 @@ fn load(i: u32) {
     let p0 = hd.input;
     let nw = hd.n_weights;
     let o = hd.output;
+    at_inv_m = p0 + p_inv_m(nb, nw);
+    at_k = p0 + p_k(nb, nw);
+    at_inv_r = p0 + p_inv_r(nb, nw);
+    at_gap = p0 + p_gap(nb, nw);
+    at_imp_t = p0 + p_imp_t(nb, nw);
+    at_imp_d = p0 + p_imp_d(nb, nw);
+    at_stiff_l = p0 + p_stiff_l(nb, nw);
+    at_stiff_r = p0 + p_stiff_r(nb, nw);
     for (var b = 0u; b < nb; b++) {
-        inv_m[b] = params[p0 + p_inv_m(nb, nw) + b];
+        if (!CONSTS_FROM_PARAMS) {
+            inv_m[b] = params[at_inv_m + b];
+        }
         v[b] = out_real[o + s_v(nb, nw) + b];
         cv[b] = out_real[o + s_cv(nb, nw) + b];
     }
     f[nb - 1u] = real(0.0);
     for (var c = 0u; c < nc; c++) {
-        k[c] = params[p0 + p_k(nb, nw) + c];
-        inv_r[c] = params[p0 + p_inv_r(nb, nw) + c];
-        gap[c] = params[p0 + p_gap(nb, nw) + c];
-        imp_t[c] = params[p0 + p_imp_t(nb, nw) + c];
-        imp_d[c] = params[p0 + p_imp_d(nb, nw) + c];
-        stiff_l[c] = params[p0 + p_stiff_l(nb, nw) + c];
-        stiff_r[c] = params[p0 + p_stiff_r(nb, nw) + c];
+        if (!CONSTS_FROM_PARAMS) {
+            k[c] = params[at_k + c];
+            inv_r[c] = params[at_inv_r + c];
+            gap[c] = params[at_gap + c];
+            imp_t[c] = params[at_imp_t + c];
+            imp_d[c] = params[at_imp_d + c];
+            stiff_l[c] = params[at_stiff_l + c];
+            stiff_r[c] = params[at_stiff_r + c];
+        }
         d[c] = out_real[o + s_d(nb, nw) + c];
         cd[c] = out_real[o + s_cd(nb, nw) + c];
         chi[c] = out_real[o + s_chi(nb, nw) + c];
@@ -297,7 +372,7 @@ fn ready() -> u32 {
             let imp = exact_impact(next);
             if (imp.taken) {
                 max_ov = r_max(max_ov, imp.dmax);
-                max_ratio = r_max(max_ratio, r_mul(imp.dmax, inv_r[next]));
+                max_ratio = r_max(max_ratio, r_mul(imp.dmax, inv_r_of(next)));
                 tt[0] = r_add(tt[0], imp.tc);
                 contacts += 1u;
                 t_release = r_max(t_release, tt[0]);
@@ -378,9 +453,9 @@ fn account() -> bool {
         let dd = d0[c];
         let d1 = d[c];
         if (hd.quarters > 0u && !damped && (r_gt(d1, real(0.0)) != r_gt(dd, real(0.0)))) {
-            let dj = r_mul(kink_impulse_error(k[c], dd, d1, w0, k0, hd.n_weights), hstep);
-            add(&v, &cv, c, r_neg(r_mul(dj, inv_m[c])));
-            add(&v, &cv, c + 1u, r_mul(dj, inv_m[c + 1u]));
+            let dj = r_mul(kink_impulse_error(k_of(c), dd, d1, w0, k0, hd.n_weights), hstep);
+            add(&v, &cv, c, r_neg(r_mul(dj, inv_m_of(c))));
+            add(&v, &cv, c + 1u, r_mul(dj, inv_m_of(c + 1u)));
         }
         if (r_gt(d1, real(0.0))) {
             if (r_le(dd, real(0.0))) {
@@ -390,7 +465,7 @@ fn account() -> bool {
                 }
             }
             max_ov = r_max(max_ov, d1);
-            max_ratio = r_max(max_ratio, r_mul(d1, inv_r[c]));
+            max_ratio = r_max(max_ratio, r_mul(d1, inv_r_of(c)));
         } else if (r_gt(dd, real(0.0))) {
             t_release = r_max(t_release, r_add(t_start, r_div(r_mul(hstep, dd), r_sub(dd, d1))));
         }

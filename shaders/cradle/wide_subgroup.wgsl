@@ -3,6 +3,8 @@
 // through workgroup memory. A workgroup of MAX_BALLS invocations is
 // MAX_BALLS / lanes subgroups of `lanes` (powers of two both; a subgroup
 // wider than the workgroup holds it whole, its other lanes inactive).
+// It stands for what engine::cradle::lanes accumulates in its loops over
+// the chain (the earliest onset, the step's caps, overlaps, onsets).
 
 // The invocation's place in the dispatch and in its subgroup.
 struct Lane {

@@ -1,5 +1,7 @@
 // wide.wgsl's reduction over workgroup memory, for adapters without
 // subgroup operations (or with them turned off: the profile's `subgroups`).
+// It stands for what engine::cradle::lanes accumulates in its loops over
+// the chain (the earliest onset, the step's caps, overlaps, onsets).
 
 // The invocation's place in the dispatch.
 struct Lane {

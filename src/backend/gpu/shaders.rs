@@ -63,6 +63,15 @@ pub fn shader_source(p: Precision) -> Cow<'static, str> {
     shader_source_sized(p, crate::scene::MAX_BALLS)
 }
 
+/// A WGSL `override` bool's value.
+fn flag(on: bool) -> f64 {
+    if on {
+        1.0
+    } else {
+        0.0
+    }
+}
+
 /// Pipelines are specialised to chains of at most this many bodies.
 pub const SIZE_CLASSES: [usize; 4] = [8, 16, 32, 64];
 
@@ -126,7 +135,8 @@ impl Gpu {
 
     /// The pipeline for `precision`, `terms` (false: elastic free lines, the
     /// pendulum, damping and drag code compiled out through the `TERMS`
-    /// override) and chains of at most `class` bodies (the shader's private
+    /// override; the profile's `consts_from_params` is the kernel with an
+    /// invocation per scene's `CONSTS_FROM_PARAMS`) and chains of at most `class` bodies (the shader's private
     /// arrays sized to it: a 5-ball chain's state fits in registers instead
     /// of spilling 64-body arrays to local memory). Compiled once, kept.
     pub(super) fn pipeline(
@@ -153,13 +163,18 @@ impl Gpu {
                 shader_source_sized(p, class)
             }),
         });
+        // (the wide kernel has no CONSTS_FROM_PARAMS)
+        let constants = [
+            ("TERMS", flag(terms)),
+            ("CONSTS_FROM_PARAMS", flag(self.profile.consts_from_params)),
+        ];
         let pipe = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
             label: Some("integrate"),
             layout: Some(&self.pipeline_layout),
             module: &module,
             entry_point: Some("main"),
             compilation_options: wgpu::PipelineCompilationOptions {
-                constants: &[("TERMS", if terms { 1.0 } else { 0.0 })],
+                constants: &constants[..if wide { 1 } else { 2 }],
                 ..Default::default()
             },
             cache: None,
