@@ -1264,7 +1264,7 @@ fn flip(path: &Path, at: usize) {
 /// boundary, a CSV and a Parquet table with one flipped byte are refused by
 /// merge, fill, plot and explore with exit 2 naming the file and what
 /// differs; no output names an input's sidecar; a table without a sidecar
-/// is read as a plain table.
+/// is read as a plain table, and one that is not there is said so alone.
 #[test]
 fn tables_are_read_only_with_their_sidecars_promise() {
     let d = tempfile::tempdir().unwrap();
@@ -1343,6 +1343,9 @@ fn tables_are_read_only_with_their_sidecars_promise() {
         "{}",
         stderr(&o)
     );
+    // A table that is not there is said so, without the plain-table note.
+    let e = refused(&plot(&d.path().join("gone.csv")), "cannot read");
+    assert!(e.contains("gone.csv") && !e.contains("plain table"), "{e}");
 }
 
 /// Every command that writes a file holds its lock (`FILE.lock`) while it

@@ -420,6 +420,8 @@ fn slot(vals: &[f64], z: f64) -> usize {
 pub fn plot(input: &Path, a: &Args, out: &Path) -> Result<()> {
     fonts();
     super::Format::of(out)?;
+    let mut t = Table::read(input)?;
+    // (after the read: a table that is not there is said so, alone)
     let sidecar = crate::output::sidecar::path(input);
     if !sidecar.exists() {
         eprintln!(
@@ -428,7 +430,6 @@ pub fn plot(input: &Path, a: &Args, out: &Path) -> Result<()> {
             sidecar.display()
         );
     }
-    let mut t = Table::read(input)?;
     t.filter(&a.wheres)?;
     let (ix, iy, iz) = (
         t.col("--x", &a.x)?,
