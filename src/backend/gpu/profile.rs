@@ -104,6 +104,21 @@ impl Profile {
     /// 5.44 s): fewer batches fit the pipeline's rows-ahead bound, so fewer
     /// are packed while others run. Wider shapes (several batches in one
     /// dispatch) are what is left to try.
+    ///
+    /// What the device really has in flight: the four calls do not run at
+    /// once on it. Each call's rounds reuse its read-write buffers, wgpu puts
+    /// a barrier before every such dispatch, and on Vulkan a barrier waits
+    /// for all earlier compute work, whoever's. So one call's 128 workgroups
+    /// (8,192 workers) are what runs at a time: about one per SM of an H100
+    /// (132), where each could hold up to 32 (2,048 threads, fewer as the
+    /// kernel's registers allow). The calls keep the device fed between
+    /// rounds, not filled. Filling it takes one dispatch over more
+    /// scenes: a larger batch now that packing is parallel (bae17ba), or
+    /// every call's scenes in one dispatch (a buffer arena); the batch is
+    /// fixed here, not read from the adapter, because wgpu reports no SM
+    /// count and the larger batches have not yet been measured with
+    /// parallel packing (`scripts/gpu_check.sh` measures 16,384 and
+    /// 32,768 beside this one).
     pub const HARDWARE: Profile = Profile {
         batch: 8_192,
         calls: 4,
