@@ -1309,3 +1309,75 @@ fn chain_sweeps_refuse_what_they_cannot_run() {
     let e = sweep_text(&chain_axis("taper.ratio", "[1.5]")).unwrap_err();
     assert!(e.contains("taper.ratio") && e.contains("1.5"), "{e}");
 }
+
+/// A backend that takes several calls at once (a GPU's calls and the
+/// batches packed beside them) is given that many, however large its
+/// batches: the lanes' bound on running ahead of the writer is never below
+/// it (at batches of 65,536 scenes the rows-ahead bound alone allows 3).
+#[test]
+fn a_backend_gets_as_many_calls_at_once_as_it_takes() {
+    use hertz_cradle::backend::{cpu::Cpu, Backend, Job};
+    use hertz_cradle::engine::Outcome;
+    use hertz_cradle::sweep::{run::run, session::Options};
+    use std::sync::{Condvar, Mutex};
+    const CALLS: usize = 4;
+    /// The CPU, in batches of 65,536, taking CALLS at once; each call
+    /// waits (2 s at most) until CALLS have been in at once, so that the
+    /// most seen is what the sweep allowed, not what the timing gave.
+    struct Wide {
+        inside: Mutex<(usize, usize)>, // (now, most)
+        cv: Condvar,
+    }
+    impl Backend for Wide {
+        fn name(&self) -> &'static str {
+            "cpu"
+        }
+        fn adapter(&self) -> String {
+            "a test's".into()
+        }
+        fn batch_size(&self) -> u64 {
+            65_536
+        }
+        fn max_concurrent_runs(&self) -> usize {
+            CALLS
+        }
+        fn run(&self, jobs: &[Job]) -> anyhow::Result<Vec<Outcome>> {
+            let mut g = self.inside.lock().unwrap();
+            g.0 += 1;
+            g.1 = g.1.max(g.0);
+            self.cv.notify_all();
+            let t0 = std::time::Instant::now();
+            while g.1 < CALLS && t0.elapsed() < Duration::from_secs(2) {
+                g = self
+                    .cv
+                    .wait_timeout(g, Duration::from_millis(50))
+                    .unwrap()
+                    .0;
+            }
+            drop(g);
+            let out = Cpu.run(jobs);
+            self.inside.lock().unwrap().0 -= 1;
+            out
+        }
+    }
+    // 266,240 two-ball cradles: four full batches and a short one.
+    let sweep = sweep_text(
+        "[scene]\nballs = 2\nvelocity = [1.0, 0.0]\n[[axis]]\nparam = \"mass[1]\"\nlinspace = [0.01, 0.1, 512]\n[[axis]]\nparam = \"gap\"\nlinspace = [0.0, 1e-5, 520]\n",
+    )
+    .unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let opts = Options::new(dir.path().join("two.csv"));
+    let wide = Wide {
+        inside: Mutex::new((0, 0)),
+        cv: Condvar::new(),
+    };
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(CALLS + 2)
+        .build()
+        .unwrap()
+        .install(|| run(&sweep, &opts, &wide))
+        .unwrap();
+    assert_eq!(wide.inside.lock().unwrap().1, CALLS);
+    let rows = fs::read_to_string(&opts.out).unwrap().lines().count();
+    assert_eq!(rows, 266_240 + 1);
+}

@@ -37,7 +37,8 @@ use crate::output::row::{self, Cell};
 
 /// Rows the lanes may run ahead of the oldest unwritten batch. With ~330
 /// bytes a row (5 balls) that is ≤ 70 MB of formatted rows waiting for a
-/// straggler; at least two batches.
+/// straggler; at least two batches, and at least as many as the backend
+/// runs at once.
 pub const AHEAD_ROWS: u64 = 196_608;
 
 /// Seconds between saves of the wall time so far (for a resumed run's sidecar).
@@ -300,9 +301,13 @@ pub fn stream(
         batch_size = (1u64 << batch_size.ilog2()).min(SEGMENT_ROWS);
     }
     let format = out.format.clone();
-    let ahead = (AHEAD_ROWS / batch_size).max(2);
     let n_batches = (hi - lo).div_ceil(batch_size);
     let lanes = rayon::current_num_threads().clamp(1, n_batches.max(1) as usize);
+    // Never fewer than the backend runs at once: a GPU's calls and the
+    // batches packed beside them (8 at the hardware profile) would
+    // otherwise wait on the bound at large batches (32,768 scenes: 6).
+    let in_flight = backend.max_concurrent_runs().min(lanes) as u64;
+    let ahead = (AHEAD_ROWS / batch_size).max(2).max(in_flight);
     // A backend that takes few calls at once (a GPU) is gated; the CPU is not.
     let gate = (backend.max_concurrent_runs() < usize::MAX)
         .then(|| Gate::new(backend.max_concurrent_runs()));
