@@ -44,54 +44,24 @@ var<private> at_imp_t: u32;
 var<private> at_imp_d: u32;
 var<private> at_stiff_l: u32;
 var<private> at_stiff_r: u32;
-fn inv_m_of(b: u32) -> real {
+// Element i of a constant's array: in `params` from `at`, or its private copy.
+fn constant(at: u32, copy: ptr<private, array<real, MAX_BALLS>>, i: u32) -> real {
     if (CONSTS_FROM_PARAMS) {
-        return params[at_inv_m + b];
+        return params[at + i];
     }
-    return inv_m[b];
+    return (*copy)[i];
 }
-fn k_of(c: u32) -> real {
-    if (CONSTS_FROM_PARAMS) {
-        return params[at_k + c];
-    }
-    return k[c];
-}
-fn inv_r_of(c: u32) -> real {
-    if (CONSTS_FROM_PARAMS) {
-        return params[at_inv_r + c];
-    }
-    return inv_r[c];
-}
-fn gap_of(c: u32) -> real {
-    if (CONSTS_FROM_PARAMS) {
-        return params[at_gap + c];
-    }
-    return gap[c];
-}
-fn imp_t_of(c: u32) -> real {
-    if (CONSTS_FROM_PARAMS) {
-        return params[at_imp_t + c];
-    }
-    return imp_t[c];
-}
-fn imp_d_of(c: u32) -> real {
-    if (CONSTS_FROM_PARAMS) {
-        return params[at_imp_d + c];
-    }
-    return imp_d[c];
-}
-fn stiff_l_of(c: u32) -> real {
-    if (CONSTS_FROM_PARAMS) {
-        return params[at_stiff_l + c];
-    }
-    return stiff_l[c];
-}
-fn stiff_r_of(c: u32) -> real {
-    if (CONSTS_FROM_PARAMS) {
-        return params[at_stiff_r + c];
-    }
-    return stiff_r[c];
-}
+// 1/m of body b; contact c's stiffness, 1/R, gap, impact coefficients
+// (engine::contact::impact_coefficients) and stiffness-cap coefficients
+// (engine::Chain::stiffness_coefficients).
+fn inv_m_of(b: u32) -> real { return constant(at_inv_m, &inv_m, b); }
+fn k_of(c: u32) -> real { return constant(at_k, &k, c); }
+fn inv_r_of(c: u32) -> real { return constant(at_inv_r, &inv_r, c); }
+fn gap_of(c: u32) -> real { return constant(at_gap, &gap, c); }
+fn imp_t_of(c: u32) -> real { return constant(at_imp_t, &imp_t, c); }
+fn imp_d_of(c: u32) -> real { return constant(at_imp_d, &imp_d, c); }
+fn stiff_l_of(c: u32) -> real { return constant(at_stiff_l, &stiff_l, c); }
+fn stiff_r_of(c: u32) -> real { return constant(at_stiff_r, &stiff_r, c); }
 // engine::cradle::add — x[i] += inc, Kahan-compensated when COMPENSATED.
 fn add(x: ptr<private, array<real, MAX_BALLS>>, cx: ptr<private, array<real, MAX_BALLS>>, i: u32, inc: real) {
     if (COMPENSATED) {
