@@ -102,8 +102,9 @@ impl Profile {
     /// 1.61 s (and 2.43 → 1.89 s in a second call). Larger batches were
     /// slower (16,384: 2.02 s, 32,768: 3.18 s, 65,536 with two calls:
     /// 5.44 s): fewer batches fit the pipeline's rows-ahead bound, so fewer
-    /// are packed while others run. Wider shapes (several batches in one
-    /// dispatch) are what is left to try.
+    /// were packed while others ran (that bound is no longer below the runs
+    /// at once, since 4914db0), and packing was serial then. Wider shapes
+    /// (several batches in one dispatch) are what is left to try.
     ///
     /// What the device really has in flight: the four calls do not run at
     /// once on it. Each call's rounds reuse its read-write buffers, wgpu puts
