@@ -22,10 +22,7 @@ var<workgroup> wx: array<real, MAX_BALLS>;
 var<workgroup> wdj: array<real, MAX_BALLS>;
 var<workgroup> wkink: array<bool, MAX_BALLS>;
 // reduction scratch (`reduce`: the tree's levels, or each subgroup's result)
-var<workgroup> ra: array<real, MAX_BALLS>;
-var<workgroup> rb: array<real, MAX_BALLS>;
-var<workgroup> rc: array<real, MAX_BALLS>;
-var<workgroup> ru: array<u32, MAX_BALLS>;
+var<workgroup> red: array<Red, MAX_BALLS>;
 // the scene the worker takes next (invocation 0 asks the queue)
 var<workgroup> taken: u32;
 

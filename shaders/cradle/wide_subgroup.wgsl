@@ -55,15 +55,12 @@ fn reduce(x: Red, op: u32) -> Red {
         return Red(subgroupBroadcast(r.a, 0u), subgroupBroadcast(r.b, 0u), subgroupBroadcast(r.c, 0u), subgroupBroadcast(r.u, 0u));
     }
     if (sid == 0u) {
-        ra[group] = r.a;
-        rb[group] = r.b;
-        rc[group] = r.c;
-        ru[group] = r.u;
+        red[group] = r;
     }
     workgroupBarrier();
-    var t = Red(ra[0], rb[0], rc[0], ru[0]);
+    var t = red[0];
     for (var g = 1u; g < parts; g++) {
-        t = combine(t, Red(ra[g], rb[g], rc[g], ru[g]), op);
+        t = combine(t, red[g], op);
     }
     return t;
 }

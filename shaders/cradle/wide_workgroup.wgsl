@@ -21,21 +21,13 @@ fn enter(lane: Lane) -> u32 {
 // what it writes or reads after (callers rely on that).
 fn reduce(x: Red, op: u32) -> Red {
     workgroupBarrier(); // the last reduction's result has been read
-    ra[me] = x.a;
-    rb[me] = x.b;
-    rc[me] = x.c;
-    ru[me] = x.u;
+    red[me] = x;
     workgroupBarrier();
     for (var s = MAX_BALLS / 2u; s > 0u; s = s / 2u) {
         if (me < s) {
-            let o = me + s;
-            let r = combine(Red(ra[me], rb[me], rc[me], ru[me]), Red(ra[o], rb[o], rc[o], ru[o]), op);
-            ra[me] = r.a;
-            rb[me] = r.b;
-            rc[me] = r.c;
-            ru[me] = r.u;
+            red[me] = combine(red[me], red[me + s], op);
         }
         workgroupBarrier();
     }
-    return Red(ra[0], rb[0], rc[0], ru[0]);
+    return red[0];
 }

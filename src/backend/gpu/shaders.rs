@@ -135,10 +135,11 @@ impl Gpu {
 
     /// The pipeline for `precision`, `terms` (false: elastic free lines, the
     /// pendulum, damping and drag code compiled out through the `TERMS`
-    /// override; the profile's `consts_from_params` is the kernel with an
-    /// invocation per scene's `CONSTS_FROM_PARAMS`) and chains of at most `class` bodies (the shader's private
+    /// override) and chains of at most `class` bodies (the shader's private
     /// arrays sized to it: a 5-ball chain's state fits in registers instead
-    /// of spilling 64-body arrays to local memory). Compiled once, kept.
+    /// of spilling 64-body arrays to local memory), as the profile asks
+    /// (`subgroups` for the wide kernel, `consts_from_params` through the
+    /// other's `CONSTS_FROM_PARAMS` override). Compiled once, kept.
     pub(super) fn pipeline(
         &self,
         p: Precision,
