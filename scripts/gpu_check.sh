@@ -13,7 +13,9 @@
 # Workloads (each GPU table is compared with the CPU's: the largest relative
 # difference of its numeric outcome columns and the rows whose status differs):
 #   grid1000  10^6 five-ball cradles (scripts/grid.py 1000 1000): GPU f64 at
-#             the default profile (twice: the first pays the shader builds)
+#             the default profile (twice: the first pays the shader builds;
+#             four batches of 8,192 held at once, sharing each round's
+#             dispatches: the stats say how many a round ran)
 #             and at three other shapes (the scenes' constants copied
 #             into private arrays as before, consts_from_params=false; a
 #             batch of 32,768; 16,384 with 8 calls), GPU f32, the CPU on all
@@ -222,7 +224,9 @@ def gpu_stats(n):
     d = g.get("gpu", {})
     if not d: return ""
     return (f"{d.get('dispatches', 0)} dispatches, {d.get('rounds', 0)} rounds, "
-            f"in flight {d.get('in_flight_fraction', 0):.2f}, on cpu {d.get('scenes_on_cpu', 0)}"
+            + (f"{d['batches_per_round']:.2f} batches a round (at most {d['most_batches_in_a_round']}), "
+               if d.get('most_batches_in_a_round') else "")
+            + f"in flight {d.get('in_flight_fraction', 0):.2f}, on cpu {d.get('scenes_on_cpu', 0)}"
             + (f"; host s: packing {d.get('packing', 0):.2f}, unpacking {d.get('unpacking', 0):.2f}, "
                f"compiling {d['compiling']:.2f}" if 'compiling' in d else ""))
 done = {}  # tables already compared: a table with the same bytes reuses the result

@@ -828,6 +828,9 @@ fn shader_and_host_agree_on_the_boundary() {
             ("done", offset_of!(GpuQueue, done)),
             ("n", offset_of!(GpuQueue, n)),
             ("budget", offset_of!(GpuQueue, budget)),
+            ("base", offset_of!(GpuQueue, base)),
+            ("first", offset_of!(GpuQueue, first)),
+            ("groups", offset_of!(GpuQueue, groups)),
         ];
         assert_eq!(queue_offsets.len(), layout::QUEUE_FIELDS.len());
         for ((m, (name, at)), (_, atomic, _)) in
@@ -1230,9 +1233,11 @@ fn gpu_matches_cpu_on_the_stress_slice() {
 }
 
 /// A sweep through the pipeline on the hardware profile with small batches
-/// (512 scenes: 20 batches, up to four calls on the device at once, each
-/// waiting only on its own submissions, a worker per two scenes, rounds
-/// paced by time): the committed CPU table byte for byte.
+/// (512 scenes: 20 batches, up to four calls on the device at once, rounds
+/// paced by time): the committed CPU table byte for byte. The batches held
+/// at once share each round's dispatches (an arena's slots, each batch's
+/// scenes and workgroups at its own places, a slot taken by the next batch
+/// as one ends while the others run on): some round ran several.
 #[test]
 fn gpu_sweep_with_concurrent_calls_writes_the_cpu_bytes() {
     use hertz_cradle::sweep::run::run;
@@ -1260,6 +1265,10 @@ fn gpu_sweep_with_concurrent_calls_writes_the_cpu_bytes() {
     );
     let st = hw.device_stats().unwrap();
     assert!(st.rounds >= 20 && st.dispatches >= 4 * st.rounds, "{st:?}");
+    assert!(
+        st.most_batches >= 2 && st.batch_rounds > st.rounds,
+        "no round ran batches together: {st:?}"
+    );
 }
 
 /// With calls at once (the hardware profile), a batch is packed and

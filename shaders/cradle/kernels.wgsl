@@ -24,9 +24,34 @@ override TERMS: bool = true;
 @group(0) @binding(2) var<storage, read_write> out_real: array<real>;
 // end (END_RUNNING while integrating), steps, contacts of each scene
 @group(0) @binding(3) var<storage, read_write> out_u32: array<u32>;
-@group(0) @binding(4) var<storage, read_write> queue: Queue;
-// the scene each worker holds between dispatches, or NO_SCENE
+// a queue per batch on the device (several batches share a dispatch)
+@group(0) @binding(4) var<storage, read_write> queues: array<Queue>;
+// the scene each worker holds between dispatches (its number in its batch),
+// or NO_SCENE; each queue's workers an equal share, in the queues' order
 @group(0) @binding(5) var<storage, read_write> workers: array<u32>;
+
+// The worker that invocation `lid` of workgroup `g` is, as (its queue, its
+// place in `workers`), when a kernel has `per_group` workers a workgroup: the
+// dispatch's workgroups are the held batches' in turn (each queue's `first ..
+// first + groups`), and each queue has an equal share of `workers`. A queue
+// past the last (none) when the group is no batch's or the invocation is
+// past its batch's share.
+fn worker_of(g: u32, lid: u32, per_group: u32) -> vec2<u32> {
+    let nq = arrayLength(&queues);
+    var q = 0u;
+    while (q < nq && g - queues[q].first >= queues[q].groups) {
+        q += 1u;
+    }
+    let per = arrayLength(&workers) / nq;
+    if (q == nq) {
+        return vec2<u32>(nq, 0u);
+    }
+    let local = (g - queues[q].first) * per_group + lid;
+    if (local >= per) {
+        return vec2<u32>(nq, 0u);
+    }
+    return vec2<u32>(q, q * per + local);
+}
 
 // body 0's displacement and its compensation, simulated time and its compensation
 var<private> x0: array<real, 1>;

@@ -2,14 +2,15 @@
 // invocation per scene, one lane (kernels.wgsl comes first).
 //
 // Invocations are workers (layout::GpuQueue): a worker takes the next scene of
-// the batch, integrates it, and when it ends takes another, so a finished
+// its batch, integrates it, and when it ends takes another, so a finished
 // scene's slot is refilled at once instead of idling beside a long one. A
-// scene may need 10^5 steps; one dispatch runs at most `queue.budget` loop
-// rounds per worker (driver watchdogs on real GPUs; llvmpipe silently cuts
-// loops short once an invocation has run about 2^16 loop iterations in all,
-// leaving garbage). A scene's state lives in out_real/out_u32 between
+// scene may need 10^5 steps; one dispatch runs at most its queue's `budget`
+// loop rounds per worker (driver watchdogs on real GPUs; llvmpipe silently
+// cuts loops short once an invocation has run about 2^16 loop iterations in
+// all, leaving garbage). A scene's state lives in out_real/out_u32 between
 // dispatches, a worker's scene in `workers`, and the host dispatches again
-// until `queue.done` counts every scene.
+// until each queue's `done` counts every scene of its batch. Several batches
+// share a dispatch (a queue each, backend::gpu::device's arena).
 
 var<private> v: array<real, MAX_BALLS>;
 var<private> d: array<real, MAX_BALLS>;
@@ -491,35 +492,40 @@ fn integrate(i: u32, left: u32) -> u32 {
     return it + 1u;
 }
 
-// A worker: the scene it holds, then the next ones of the queue, until the
-// dispatch's rounds are spent or the queue is empty.
+// A worker: the scene it holds, then the next ones of its batch's queue,
+// until the dispatch's rounds are spent or the queue is empty. The workers
+// and workgroups are the batches' (`worker_of`).
 @compute @workgroup_size(64)
-fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let w = gid.x;
-    if (w >= arrayLength(&workers)) {
+fn main(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) lid: u32) {
+    let at = worker_of(wid.x, lid, 64u);
+    let q = at.x;
+    if (q >= arrayLength(&queues)) {
         return;
     }
+    let w = at.y;
+    let n = queues[q].n;
+    let base = queues[q].base;
     var i = workers[w];
-    var left = queue.budget;
+    var left = queues[q].budget;
     loop {
         if (left == 0u) {
             break;
         }
         if (i == NO_SCENE) {
-            if (atomicLoad(&queue.next) >= queue.n) {
+            if (atomicLoad(&queues[q].next) >= n) {
                 break;
             }
-            i = atomicAdd(&queue.next, 1u);
-            if (i >= queue.n) {
+            i = atomicAdd(&queues[q].next, 1u);
+            if (i >= n) {
                 i = NO_SCENE;
                 break;
             }
         }
-        left -= min(integrate(i, left), left);
-        if (out_u32[N_WORDS * i + W_END] == END_RUNNING) {
+        left -= min(integrate(base + i, left), left);
+        if (out_u32[N_WORDS * (base + i) + W_END] == END_RUNNING) {
             break;
         }
-        atomicAdd(&queue.done, 1u);
+        atomicAdd(&queues[q].done, 1u);
         i = NO_SCENE;
     }
     workers[w] = i;

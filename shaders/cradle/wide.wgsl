@@ -571,17 +571,22 @@ fn integrate(i: u32, left: u32) -> u32 {
     return it + 1u;
 }
 
-// A worker is a workgroup: the scene it holds, then the next ones of the
-// queue (invocation 0 takes them), until the dispatch's rounds are spent or
-// the queue is empty.
+// A worker is a workgroup: the scene it holds, then the next ones of its
+// batch's queue (invocation 0 takes them), until the dispatch's rounds are
+// spent or the queue is empty. Workers and workgroups are the batches'
+// (`worker_of`, a worker a workgroup).
 @compute @workgroup_size(MAX_BALLS)
 fn main(lane: Lane) {
-    let w = enter(lane);
-    if (w >= arrayLength(&workers)) {
+    let at = worker_of(enter(lane), 0u, 1u);
+    let q = at.x;
+    if (q >= arrayLength(&queues)) {
         return;
     }
+    let w = at.y;
+    let n = queues[q].n;
+    let base = queues[q].base;
     var i = workers[w];
-    var left = queue.budget;
+    var left = queues[q].budget;
     loop {
         if (left == 0u) {
             break;
@@ -589,9 +594,9 @@ fn main(lane: Lane) {
         if (i == NO_SCENE) {
             if (me == 0u) {
                 var got = NO_SCENE;
-                if (atomicLoad(&queue.next) < queue.n) {
-                    let j = atomicAdd(&queue.next, 1u);
-                    if (j < queue.n) {
+                if (atomicLoad(&queues[q].next) < n) {
+                    let j = atomicAdd(&queues[q].next, 1u);
+                    if (j < n) {
                         got = j;
                     }
                 }
@@ -602,12 +607,12 @@ fn main(lane: Lane) {
                 break;
             }
         }
-        left -= min(integrate(i, left), left);
+        left -= min(integrate(base + i, left), left);
         if (ended == END_RUNNING) {
             break;
         }
         if (me == 0u) {
-            atomicAdd(&queue.done, 1u);
+            atomicAdd(&queues[q].done, 1u);
         }
         i = NO_SCENE;
     }

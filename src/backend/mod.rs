@@ -189,6 +189,11 @@ pub struct DeviceStats {
     pub dispatches: u64,
     /// Rounds: submissions of dispatches followed by a look at the counters.
     pub rounds: u64,
+    /// Batches the cradle kernels' rounds ran, summed over the rounds (a
+    /// round's dispatches run every batch held on the device at once).
+    pub batch_rounds: u64,
+    /// The most batches one round ran.
+    pub most_batches: u64,
     /// Seconds during which at least one submission was in flight (an upper
     /// bound of the device's busy time, as the host sees it).
     pub in_flight_s: f64,

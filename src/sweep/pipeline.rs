@@ -81,6 +81,8 @@ impl Stages {
             j["gpu"] = serde_json::json!({
                 "dispatches": d.dispatches,
                 "rounds": d.rounds,
+                "batches_per_round": d.batch_rounds as f64 / (d.rounds.max(1) as f64),
+                "most_batches_in_a_round": d.most_batches,
                 "in_flight": d.in_flight_s,
                 "in_flight_fraction": d.in_flight_s / wall_s.max(1e-9),
                 "scenes_on_cpu": d.cpu_scenes,

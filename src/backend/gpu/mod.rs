@@ -11,7 +11,7 @@
 //! | `profile.rs` | [`Profile`], pacing, lavapipe's loop budget, device counters |
 //! | `shaders.rs` | the WGSL assembled, the pipelines (all built by [`Gpu::prepare`]) |
 //! | `pack.rs` | a batch's headers, params and states, placed by name through `layout` (once per scene shape), packed in parallel |
-//! | `device.rs` | one batch on the device: buffers, rounds in flight, read-back |
+//! | `device.rs` | the batches on the device: an arena per pipeline (a slot per batch held at once), rounds over every batch held, each batch read back as it ends |
 //! | `staging.rs` | staging both models share: uploads through a mapped buffer, read-back where the mapping lies |
 //! | `probe.rs` | the df64 arithmetic probe (tests) |
 //! | `granular.rs` | granular chains: a workgroup per chain (`shaders/granular/chains.wgsl`) |
@@ -39,7 +39,6 @@ use crate::engine::real::{Df64, Real};
 use crate::engine::{simulate_chain, Chain, Outcome, Silent, Solver};
 use crate::scene::Precision;
 pub use adapter::{find_adapter, quiet_mesa_without_session, Want};
-use device::WORKGROUP;
 pub use granular::{chain_shader, chain_wg, local_beads, ChainKernel};
 pub use probe::DF64_PROBE_OPS;
 use profile::Tracker;
@@ -98,6 +97,9 @@ pub struct Gpu {
     pipeline_layout: wgpu::PipelineLayout,
     /// Pipelines by (precision, terms, size class, kernel).
     pipes: Mutex<HashMap<PipeKey, Arc<wgpu::ComputePipeline>>>,
+    /// Each pipeline's buffers on the device, a slot per batch held at once
+    /// (`device.rs`), built on first use.
+    arenas: Mutex<HashMap<PipeKey, Arc<device::Arena>>>,
     f64_ok: bool,
     info: wgpu::AdapterInfo,
     max_workgroups: u32,
@@ -180,6 +182,7 @@ impl Gpu {
             layout,
             pipeline_layout: pl,
             pipes: Mutex::new(HashMap::new()),
+            arenas: Mutex::new(HashMap::new()),
             f64_ok,
             info: info.clone(),
             max_workgroups,
@@ -205,6 +208,10 @@ impl Gpu {
         self.profile = profile;
         self.on_device = crate::backend::Gate::new(profile.calls);
         self.pipes
+            .get_mut()
+            .unwrap_or_else(|e| e.into_inner())
+            .clear();
+        self.arenas
             .get_mut()
             .unwrap_or_else(|e| e.into_inner())
             .clear();
@@ -249,25 +256,33 @@ impl Gpu {
         }
         let pipe = self.pipeline(p, terms, class, wide)?;
         let pipe = pipe.as_ref();
-        // Parts small enough for the adapter: workgroups per dimension, and
-        // the largest storage binding (params and state grow with N).
-        let per_group = if wide { 1 } else { WORKGROUP as usize };
-        let max_scenes = (self.max_workgroups as usize) * per_group;
-        let real = std::mem::size_of::<R>() as u64;
-        let bytes = |(ch, s): &(&Chain, &Solver)| {
+        let arena = self.arena::<R>((p, terms, class, wide));
+        // Parts the arena's slots hold: scenes, and reals of parameters or
+        // state (each scene's fewer than the arena counts on).
+        let reals = |(ch, s): &(&Chain, &Solver)| {
             let (nb, nw) = (
                 ch.n_bodies(),
                 crate::engine::solver::weights(s.method).len(),
             );
-            (layout::len(PARAMS, nb, nw).max(layout::len(STATE, nb, nw)) as u64) * real
+            layout::len(PARAMS, nb, nw).max(layout::len(STATE, nb, nw)) as u64
         };
         let mut out = Vec::with_capacity(jobs.len());
-        for part in parts(jobs.len(), max_scenes, self.max_binding, |k| {
-            bytes(&jobs[k])
-        }) {
-            out.extend(self.dispatch::<R>(pipe, &jobs[part], wide.then_some(class))?);
+        for part in parts(jobs.len(), arena.scenes, arena.reals, |k| reals(&jobs[k])) {
+            out.extend(self.dispatch::<R>(&arena, pipe, &jobs[part], wide.then_some(class))?);
         }
         Ok(out)
+    }
+
+    /// The arena of pipeline `key` (built on first use).
+    fn arena<R: Real>(&self, key: PipeKey) -> Arc<device::Arena> {
+        let mut arenas = self.arenas.lock().unwrap_or_else(|e| e.into_inner());
+        arenas
+            .entry(key)
+            .or_insert_with(|| {
+                let real = std::mem::size_of::<R>() as u64;
+                Arc::new(self.new_arena(key.2, real, key.3))
+            })
+            .clone()
     }
 
     /// One part of a batch on the device: planned and packed, integrated
@@ -275,6 +290,7 @@ impl Gpu {
     /// read back and unpacked.
     fn dispatch<R: Real + Pod>(
         &self,
+        arena: &device::Arena,
         pipe: &wgpu::ComputePipeline,
         jobs: &[(&Chain, &Solver)],
         wide: Option<usize>,
@@ -292,7 +308,7 @@ impl Gpu {
             let t2 = std::time::Instant::now();
             self.stats
                 .host((t1 - t0).as_secs_f64(), 0.0, (t2 - t1).as_secs_f64());
-            self.integrate::<R>(pipe, jobs, &headers, params, state, wide)?
+            self.integrate::<R>(arena, pipe, jobs, &headers, params, state, wide)?
         };
         let t3 = std::time::Instant::now();
         let runs = self.host.install(|| {

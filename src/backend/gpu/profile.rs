@@ -37,8 +37,8 @@ pub const CHAIN_WG: u32 = 64;
 pub struct Profile {
     /// Scenes per sweep batch (`Backend::batch_size`).
     pub batch: u64,
-    /// Batches on the device at once; each waits only for its own
-    /// submissions.
+    /// Batches on the device at once: a pipeline's arena has a slot for
+    /// each, and every round's dispatches run all the batches held.
     pub calls: usize,
     /// Batches being planned, packed or unpacked on the host beside the
     /// `calls` on the device (`Backend::max_concurrent_runs` is the sum):
@@ -104,22 +104,20 @@ impl Profile {
     /// 5.44 s): fewer batches fit the pipeline's rows-ahead bound, so fewer
     /// were packed while others ran (that bound is no longer below the runs
     /// at once, since 4914db0), and packing was serial then. Wider shapes
-    /// (several batches in one dispatch) are what is left to try.
+    /// (several batches in one dispatch) were what was left to try.
     ///
-    /// What the device really has in flight: the four calls do not run at
-    /// once on it. Each call's rounds reuse its read-write buffers, wgpu puts
-    /// a barrier before every such dispatch, and on Vulkan a barrier waits
-    /// for all earlier compute work, whoever's. So one call's 128 workgroups
-    /// (8,192 workers) are what runs at a time: about one per SM of an H100
-    /// (132), where each could hold up to 32 (2,048 threads, fewer as the
-    /// kernel's registers allow). The calls keep the device fed between
-    /// rounds, not filled. Filling it takes one dispatch over more
-    /// scenes: a larger batch now that packing is parallel (bae17ba), or
-    /// every call's scenes in one dispatch (a buffer arena); the batch is
+    /// What the device has in flight: the four calls' batches share each
+    /// round's dispatches (`device.rs`'s arena, a slot per call), so up to
+    /// four batches' 512 workgroups (32,768 workers) run at once. Until
+    /// then each call dispatched its own: each call's rounds reused its
+    /// read-write buffers, wgpu puts a barrier before every such dispatch,
+    /// and on Vulkan a barrier waits for all earlier compute work,
+    /// whoever's, so one call's 128 workgroups were what ran at a time,
+    /// about one per SM of an H100 (132) where each could hold up to 32
+    /// (2,048 threads, fewer as the kernel's registers allow). The batch is
     /// fixed here, not read from the adapter, because wgpu reports no SM
-    /// count and the larger batches have not yet been measured with
-    /// parallel packing (`scripts/gpu_check.sh` measures 16,384 and
-    /// 32,768 beside this one).
+    /// count; the shapes are measured on hardware by
+    /// `scripts/gpu_check.sh` (16,384 and 32,768 scenes beside this one).
     pub const HARDWARE: Profile = Profile {
         batch: 8_192,
         calls: 4,
@@ -227,7 +225,7 @@ pub(super) struct Pace {
     pub(super) dispatches: u32,
     timed: bool,
     /// The most rounds per dispatch (a software adapter's loop limit).
-    most: u32,
+    pub(super) most: u32,
 }
 
 impl Pace {
@@ -307,6 +305,13 @@ impl Tracker {
                 st.in_flight_s += t.elapsed().as_secs_f64();
             }
         }
+    }
+
+    /// A round of dispatches ran `batches` batches at once.
+    pub(super) fn together(&self, batches: u32) {
+        let mut g = self.inner.lock().unwrap_or_else(|e| e.into_inner());
+        g.0.batch_rounds += u64::from(batches);
+        g.0.most_batches = g.0.most_batches.max(u64::from(batches));
     }
 
     pub(super) fn on_cpu(&self, scenes: u64) {

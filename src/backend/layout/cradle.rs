@@ -39,11 +39,15 @@ words! {
 }
 const _: () = assert!(std::mem::size_of::<GpuHeader>() == 4 * 7);
 
-/// The work queue of one batch (binding 4, the shader's `struct Queue`).
-/// Each invocation is a *worker* that takes the next scene (`next`, atomic),
-/// integrates it, and when it ends takes another (slot refill, as the CPU's
-/// SIMD lanes do), for at most `budget` loop rounds (steps, closed-form
-/// impacts, one per scene taken) per dispatch; `done` counts ended scenes.
+/// The work queue of one batch (an element of binding 4, the shader's
+/// `array<Queue>`: a queue per batch on the device, each with an equal share
+/// of the workers). Each invocation is a *worker* that takes its batch's
+/// next scene (`next`, atomic), integrates it, and when it ends takes
+/// another (slot refill, as the CPU's SIMD lanes do), for at most `budget`
+/// loop rounds (steps, closed-form impacts, one per scene taken) per
+/// dispatch; `done` counts ended scenes. Scene `i` of the batch is scene
+/// `base + i` of the buffers (headers, words). A dispatch's workgroups are
+/// the held batches' in turn: this batch's are `first .. first + groups`.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
 pub struct GpuQueue {
@@ -51,6 +55,9 @@ pub struct GpuQueue {
     pub done: u32,
     pub n: u32,
     pub budget: u32,
+    pub base: u32,
+    pub first: u32,
+    pub groups: u32,
 }
 /// `GpuQueue`'s fields in order: name, atomic in the shader, doc.
 pub const QUEUE_FIELDS: &[(&str, bool, &str)] = &[
@@ -62,8 +69,23 @@ pub const QUEUE_FIELDS: &[(&str, bool, &str)] = &[
         false,
         "loop rounds per worker and dispatch (watchdogs; llvmpipe's loop limit)",
     ),
+    (
+        "base",
+        false,
+        "the batch's first scene in headers and out_u32",
+    ),
+    (
+        "first",
+        false,
+        "the first workgroup of a dispatch that is this batch's",
+    ),
+    (
+        "groups",
+        false,
+        "the batch's workgroups in a dispatch (0: none held here)",
+    ),
 ];
-const _: () = assert!(std::mem::size_of::<GpuQueue>() == 4 * 4);
+const _: () = assert!(std::mem::size_of::<GpuQueue>() == 4 * 7);
 /// A worker's word in `workers` when it holds no scene.
 pub const NO_SCENE: u32 = u32::MAX;
 
