@@ -162,14 +162,16 @@ impl Gpu {
         };
         let per_scene = reals_per_scene(class) * real;
         let limits = self.device.limits();
-        // (and the headers' offsets, in reals, within u32)
+        // The largest buffer: the device's limits, and the headers' offsets
+        // (in reals) within u32. A slot's workgroups: at most its share of
+        // a dispatch's.
         let largest = self
             .max_binding
             .min(limits.max_buffer_size)
             .min(u32::MAX as u64 * real);
         let fit = |slots: u64| {
             (p.batch)
-                .min(self.max_workgroups as u64 * per_group / slots)
+                .min(self.max_workgroups as u64 / slots * per_group)
                 .min(largest / (slots * per_scene))
         };
         let mut slots = (p.calls as u64).max(1);
@@ -181,13 +183,21 @@ impl Gpu {
         let d = &self.device;
         let n = slots * scenes;
         let usage = |extra| wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST | extra;
+        // Zeroed now, mapped at creation, not by wgpu on first use: wgpu
+        // clears a buffer's unwritten ranges when a submission first binds
+        // it, and a batch's data written into its slot from another thread
+        // while a round binding the arena is submitted could be cleared
+        // after it (seen on lavapipe: a slot's first batch read zero
+        // parameters, every scene a time cap at step 0, about 1 run in 12).
         let buffer = |label, size: u64, extra| {
-            d.create_buffer(&wgpu::BufferDescriptor {
+            let b = d.create_buffer(&wgpu::BufferDescriptor {
                 label: Some(label),
                 size: size.max(4),
                 usage: usage(extra),
-                mapped_at_creation: false,
-            })
+                mapped_at_creation: true,
+            });
+            b.unmap();
+            b
         };
         let src = wgpu::BufferUsages::COPY_SRC;
         let none = wgpu::BufferUsages::empty();
