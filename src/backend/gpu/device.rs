@@ -53,8 +53,6 @@ struct Held {
     pace: Pace,
     read_u: wgpu::Buffer,
     read_r: wgpu::Buffer,
-    /// Bytes of its state (`read_r`'s size).
-    state_bytes: u64,
     /// The first round submitted after its queue's entry was written
     /// (`None`: not written yet): earlier rounds' counters are a former
     /// batch's.
@@ -127,15 +125,23 @@ pub(super) struct Arena {
     rounds: Mutex<Rounds>,
 }
 
-/// Reals a scene of `class` bodies takes at most in `params` or the state
-/// (every method's substeps).
+/// Bytes of a scene's words in `out_u32`.
+const WORD_BYTES: u64 = 4 * WORDS.len() as u64;
+
+/// Reals a scene of `nb` bodies and `nw` substeps takes in `params` or the
+/// state, whichever is more: what a slot's share of either must hold.
+pub(super) fn scene_reals(nb: usize, nw: usize) -> u64 {
+    layout::len(PARAMS, nb, nw).max(layout::len(STATE, nb, nw)) as u64
+}
+
+/// [`scene_reals`] at most for chains of `class` bodies (every method's
+/// substeps).
 fn reals_per_scene(class: usize) -> u64 {
     Method::ALL
         .iter()
-        .map(|&m| crate::engine::solver::weights(m).len())
-        .map(|nw| layout::len(PARAMS, class, nw).max(layout::len(STATE, class, nw)))
+        .map(|&m| scene_reals(class, crate::engine::solver::weights(m).len()))
         .max()
-        .unwrap_or(1) as u64
+        .unwrap_or(1)
 }
 
 fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
@@ -160,7 +166,7 @@ impl Gpu {
         } else {
             per_worker * WORKGROUP as u64
         };
-        let per_scene = reals_per_scene(class) * real;
+        let per_scene = reals_per_scene(class);
         let limits = self.device.limits();
         // The largest buffer: the device's limits, and the headers' offsets
         // (in reals) within u32. A slot's workgroups: at most its share of
@@ -172,7 +178,7 @@ impl Gpu {
         let fit = |slots: u64| {
             (p.batch)
                 .min(self.max_workgroups as u64 / slots * per_group)
-                .min(largest / (slots * per_scene))
+                .min(largest / (slots * per_scene * real))
         };
         let mut slots = (p.calls as u64).max(1);
         while slots > 1 && fit(slots) < p.batch.min(1024) {
@@ -202,10 +208,10 @@ impl Gpu {
         let src = wgpu::BufferUsages::COPY_SRC;
         let none = wgpu::BufferUsages::empty();
         let hdr = buffer("headers", n * std::mem::size_of::<GpuHeader>() as u64, none);
-        let reals = scenes * reals_per_scene(class);
+        let reals = scenes * per_scene;
         let par = buffer("params", slots * reals * real, none);
         let out_r = buffer("state_real", slots * reals * real, src);
-        let out_u = buffer("state_u32", n * 4 * WORDS.len() as u64, src);
+        let out_u = buffer("state_u32", n * WORD_BYTES, src);
         // Every queue empty (n = 0) until a batch is put in its slot.
         let queues = buffer(
             "queues",
@@ -314,8 +320,11 @@ impl Gpu {
         q.write_buffer(&arena.hdr, scene0 * header, bytemuck::cast_slice(&shifted));
         q.write_buffer(&arena.par, real0 * real, bytemuck::cast_slice(&params));
         q.write_buffer(&arena.out_r, real0 * real, bytemuck::cast_slice(&state));
-        let word = 4 * WORDS.len() as u64;
-        q.write_buffer(&arena.out_u, scene0 * word, bytemuck::cast_slice(&words0));
+        q.write_buffer(
+            &arena.out_u,
+            scene0 * WORD_BYTES,
+            bytemuck::cast_slice(&words0),
+        );
         let workers = vec![NO_SCENE; arena.workers as usize];
         q.write_buffer(
             &arena.workers_buf,
@@ -325,7 +334,7 @@ impl Gpu {
         let state_bytes = state.len() as u64 * real;
         // In the queue's staging now: the host copies go.
         drop((params, state, shifted));
-        let read_u = self.read_buffer("read_u32", n as u64 * word);
+        let read_u = self.read_buffer("read_u32", n as u64 * WORD_BYTES);
         let read_r = self.read_buffer("read_real", state_bytes);
         arena.hold(
             s,
@@ -335,7 +344,6 @@ impl Gpu {
                 pace,
                 read_u: read_u.clone(),
                 read_r: read_r.clone(),
-                state_bytes,
                 since: None,
                 budget: 0,
             },
@@ -562,10 +570,9 @@ impl Gpu {
                 .create_command_encoder(&wgpu::CommandEncoderDescriptor {
                     label: Some("read back"),
                 });
-            let word = 4 * WORDS.len() as u64;
             enc.copy_buffer_to_buffer(
                 &arena.out_u,
-                (s * arena.scenes) as u64 * word,
+                (s * arena.scenes) as u64 * WORD_BYTES,
                 &h.read_u,
                 0,
                 h.read_u.size(),
@@ -575,7 +582,7 @@ impl Gpu {
                 s as u64 * arena.reals * arena.real,
                 &h.read_r,
                 0,
-                h.state_bytes,
+                h.read_r.size(),
             );
             self.stats.submitted(0);
             let index = self.queue.submit(Some(enc.finish()));

@@ -32,7 +32,6 @@ use anyhow::{anyhow, bail, Context, Result};
 use bytemuck::Pod;
 use rayon::prelude::*;
 
-use super::layout::cradle::{self as layout, PARAMS, STATE};
 use super::{Backend, ChainSource, DeviceStats, Job, Needs};
 use crate::engine::cradle::Run;
 use crate::engine::real::{Df64, Real};
@@ -260,11 +259,10 @@ impl Gpu {
         // Parts the arena's slots hold: scenes, and reals of parameters or
         // state (each scene's fewer than the arena counts on).
         let reals = |(ch, s): &(&Chain, &Solver)| {
-            let (nb, nw) = (
+            device::scene_reals(
                 ch.n_bodies(),
                 crate::engine::solver::weights(s.method).len(),
-            );
-            layout::len(PARAMS, nb, nw).max(layout::len(STATE, nb, nw)) as u64
+            )
         };
         let mut out = Vec::with_capacity(jobs.len());
         for part in parts(jobs.len(), arena.scenes, arena.reals, |k| reals(&jobs[k])) {
