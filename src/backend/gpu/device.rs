@@ -20,7 +20,7 @@ use wgpu::util::DeviceExt;
 
 use super::profile::Pace;
 use super::staging::{map_read, Mapping};
-use super::Gpu;
+use super::{lock, Gpu};
 use crate::backend::layout::cradle::{
     self as layout, GpuHeader, GpuQueue, END_RUNNING, NO_SCENE, PARAMS, STATE, WORDS,
 };
@@ -46,8 +46,6 @@ fn log_rounds() -> bool {
 /// go when it ends, and since which round its queue's counters count it.
 struct Held {
     n: u32,
-    /// Its workers (`n` over the profile's scenes per worker).
-    workers: u32,
     /// Its rounds per dispatch (untimed; a software adapter's loop limit)
     /// and dispatches per round.
     pace: Pace,
@@ -142,10 +140,6 @@ fn reals_per_scene(class: usize) -> u64 {
         .map(|&m| scene_reals(class, crate::engine::solver::weights(m).len()))
         .max()
         .unwrap_or(1)
-}
-
-fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
-    m.lock().unwrap_or_else(|e| e.into_inner())
 }
 
 impl Gpu {
@@ -340,7 +334,6 @@ impl Gpu {
             s,
             Held {
                 n: n as u32,
-                workers: (n as u32).div_ceil(arena.per_worker),
                 pace,
                 read_u: read_u.clone(),
                 read_r: read_r.clone(),
@@ -446,10 +439,12 @@ impl Gpu {
             } else {
                 h.pace.rounds
             };
+            // Its workers (`n` over the scenes a worker takes), in groups.
+            let workers = h.n.div_ceil(arena.per_worker);
             let groups = if arena.wide {
-                h.workers
+                workers
             } else {
-                h.workers.div_ceil(WORKGROUP)
+                workers.div_ceil(WORKGROUP)
             };
             let placed = (shape.groups, groups);
             if h.since.is_none() {

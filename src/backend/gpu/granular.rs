@@ -14,7 +14,7 @@ use anyhow::{bail, Context, Result};
 use wgpu::util::DeviceExt;
 
 use super::staging::map_read;
-use super::Gpu;
+use super::{lock, Gpu};
 pub use crate::backend::layout::granular::{chain_shader, ChainKernel};
 use crate::backend::layout::granular::{
     ChainCtl, ChainHead, Offsets, Sc, F_DRAG, F_DRIVE, F_DURATION, F_ENDS, F_END_AT, F_GAMMA, F_HC,
@@ -492,10 +492,10 @@ impl Gpu {
 
     /// The chain pipelines compiled so far, sorted.
     pub fn chain_pipelines(&self) -> Vec<(Precision, ChainKernel)> {
-        let pipes = self.chain_pipes.lock().unwrap_or_else(|e| e.into_inner());
+        let pipes = lock(&self.chain_pipes);
         let mut keys: Vec<_> = pipes
             .iter()
-            .filter(|(_, slot)| slot.lock().unwrap_or_else(|e| e.into_inner()).is_some())
+            .filter(|(_, slot)| lock(slot).is_some())
             .map(|(key, _)| *key)
             .collect();
         keys.sort_unstable();
@@ -536,14 +536,11 @@ impl Gpu {
         if precision == Precision::F32 {
             bail!("the granular-chain kernel runs f64 or df64, not f32 (refused at the front ends: granular::check_solver)");
         }
-        let slot = self
-            .chain_pipes
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
+        let slot = lock(&self.chain_pipes)
             .entry((precision, kernel))
             .or_default()
             .clone();
-        let mut slot = slot.lock().unwrap_or_else(|e| e.into_inner());
+        let mut slot = lock(&slot);
         if let Some(p) = &*slot {
             return Ok(p.clone());
         }

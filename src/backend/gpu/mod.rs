@@ -26,7 +26,7 @@ mod shaders;
 mod staging;
 
 use std::collections::HashMap;
-use std::sync::{Arc, Mutex};
+use std::sync::{Arc, Mutex, MutexGuard};
 
 use anyhow::{anyhow, bail, Context, Result};
 use bytemuck::Pod;
@@ -47,6 +47,12 @@ pub use shaders::{
     shader_source, shader_source_sized, shader_source_wide, size_class, SHADER_BODY, SIZE_CLASSES,
     WIDE_BODY, WIDE_SUBGROUP, WIDE_WORKGROUP,
 };
+
+/// `m`'s lock, a poisoned one taken as it is: every lock of the GPU
+/// backend (pipelines, arenas, slots, counters) is taken this way.
+fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(|e| e.into_inner())
+}
 
 /// A compute shader's storage buffer at `binding` of a bind-group layout.
 pub(super) fn storage(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
@@ -273,7 +279,7 @@ impl Gpu {
 
     /// The arena of pipeline `key` (built on first use).
     fn arena<R: Real>(&self, key: PipeKey) -> Arc<device::Arena> {
-        let mut arenas = self.arenas.lock().unwrap_or_else(|e| e.into_inner());
+        let mut arenas = lock(&self.arenas);
         arenas
             .entry(key)
             .or_insert_with(|| {

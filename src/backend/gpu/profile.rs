@@ -7,6 +7,7 @@ use std::sync::Mutex;
 
 use anyhow::{anyhow, bail, Result};
 
+use super::lock;
 use crate::backend::DeviceStats;
 use crate::engine::{Chain, Solver};
 
@@ -286,7 +287,7 @@ pub(super) struct Tracker {
 
 impl Tracker {
     pub(super) fn submitted(&self, dispatches: u64) {
-        let mut g = self.inner.lock().unwrap_or_else(|e| e.into_inner());
+        let mut g = lock(&self.inner);
         let (st, n, since) = &mut *g;
         st.dispatches += dispatches;
         st.rounds += u64::from(dispatches > 0);
@@ -297,7 +298,7 @@ impl Tracker {
     }
 
     pub(super) fn completed(&self) {
-        let mut g = self.inner.lock().unwrap_or_else(|e| e.into_inner());
+        let mut g = lock(&self.inner);
         let (st, n, since) = &mut *g;
         *n = n.saturating_sub(1);
         if *n == 0 {
@@ -309,22 +310,18 @@ impl Tracker {
 
     /// A round of dispatches ran `batches` batches at once.
     pub(super) fn together(&self, batches: u32) {
-        let mut g = self.inner.lock().unwrap_or_else(|e| e.into_inner());
+        let mut g = lock(&self.inner);
         g.0.batch_rounds += u64::from(batches);
         g.0.most_batches = g.0.most_batches.max(u64::from(batches));
     }
 
     pub(super) fn on_cpu(&self, scenes: u64) {
-        self.inner
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .0
-            .cpu_scenes += scenes;
+        lock(&self.inner).0.cpu_scenes += scenes;
     }
 
     /// Host seconds: planning and packing, unpacking, waiting for the device.
     pub(super) fn host(&self, packing: f64, unpacking: f64, waiting: f64) {
-        let mut g = self.inner.lock().unwrap_or_else(|e| e.into_inner());
+        let mut g = lock(&self.inner);
         g.0.packing_s += packing;
         g.0.unpacking_s += unpacking;
         g.0.waiting_s += waiting;
@@ -332,15 +329,11 @@ impl Tracker {
 
     /// Seconds a pipeline took to build.
     pub(super) fn compiled(&self, secs: f64) {
-        self.inner
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .0
-            .compiling_s += secs;
+        lock(&self.inner).0.compiling_s += secs;
     }
 
     pub(super) fn get(&self) -> DeviceStats {
-        self.inner.lock().unwrap_or_else(|e| e.into_inner()).0
+        lock(&self.inner).0
     }
 }
 

@@ -8,7 +8,7 @@ use std::sync::Arc;
 
 use anyhow::{bail, Result};
 
-use super::Gpu;
+use super::{lock, Gpu};
 use crate::backend::{layout, Needs};
 use crate::scene::Precision;
 
@@ -127,7 +127,7 @@ impl Gpu {
     /// The pipelines compiled so far: (precision, terms, size class, a
     /// workgroup per scene), sorted.
     pub fn pipelines(&self) -> Vec<(Precision, bool, usize, bool)> {
-        let pipes = self.pipes.lock().unwrap_or_else(|e| e.into_inner());
+        let pipes = lock(&self.pipes);
         let mut keys: Vec<PipeKey> = pipes.keys().copied().collect();
         keys.sort_by_key(|k| (k.0.name(), k.1, k.2, k.3));
         keys
@@ -148,7 +148,7 @@ impl Gpu {
         wide: bool,
     ) -> Result<Arc<wgpu::ComputePipeline>> {
         let key = (p, terms, class, wide);
-        let mut pipes = self.pipes.lock().unwrap_or_else(|e| e.into_inner());
+        let mut pipes = lock(&self.pipes);
         if let Some(pipe) = pipes.get(&key) {
             return Ok(pipe.clone());
         }
